@@ -1,0 +1,25 @@
+// atex: the AdaTex4D toolkit's command line. Subcommands live in cmd_*.cc.
+#include <CLI/CLI.hpp>
+
+#include "cli.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"atex - adaptive textured 4D Gaussian splatting toolkit"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("atex 0.1.0"));
+  std::vector<std::pair<CLI::App*, atex::cli::Runner>> runners;
+  for (const auto& command : atex::cli::Commands()) {
+    CLI::App* sub = app.add_subcommand(command.name, command.description);
+    runners.emplace_back(sub, command.setup(*sub));
+  }
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? atex::cli::kExitOk : atex::cli::kExitUsage;
+  }
+  for (auto& [sub, run] : runners) {
+    if (sub->parsed()) return run();
+  }
+  return atex::cli::kExitUsage;
+}
