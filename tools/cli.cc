@@ -29,15 +29,20 @@ void PrintJson(const nlohmann::json& json) { std::cout << json.dump(2) << "\n"; 
 
 Progress::Progress(std::string label, long long total)
     : label_(std::move(label)), total_(total), tty_(isatty(STDERR_FILENO) != 0),
-      start_(std::chrono::steady_clock::now()), last_(start_ - std::chrono::hours(1)) {}
+      first_(std::chrono::steady_clock::now()), last_(first_ - std::chrono::hours(1)) {}
 
 void Progress::Update(long long done, const std::string& detail) {
   auto now = std::chrono::steady_clock::now();
+  if (first_done_ < 0) {
+    first_done_ = done;
+    first_ = now;
+  }
   const double since_last = std::chrono::duration<double>(now - last_).count();
   if (since_last < (tty_ ? 0.1 : 2.0) && done < total_) return;
   last_ = now;
-  const double elapsed = std::chrono::duration<double>(now - start_).count();
-  const double rate = elapsed > 0 ? done / elapsed : 0.0;
+  drawn_done_ = done;
+  const double elapsed = std::chrono::duration<double>(now - first_).count();
+  const double rate = elapsed > 0 ? (done - first_done_) / elapsed : 0.0;
   const double eta = rate > 0 && total_ > done ? (total_ - done) / rate : 0.0;
   const int width = 24;
   const int filled = total_ > 0 ? static_cast<int>(width * static_cast<double>(done) / total_) : 0;
@@ -54,7 +59,12 @@ void Progress::Update(long long done, const std::string& detail) {
 }
 
 void Progress::Finish(const std::string& detail) {
-  Update(total_, detail);
+  if (finished_) return;
+  finished_ = true;
+  if (drawn_done_ != total_) {
+    last_ = first_ - std::chrono::hours(1);  // draw the final state once
+    Update(total_, detail);
+  }
   if (tty_) std::cerr << "\n";
 }
 

@@ -47,12 +47,16 @@ class Progress {
   // `detail` is appended after the counter, e.g. "loss 0.031 PSNR 27.1".
   void Update(long long done, const std::string& detail = "");
   void Finish(const std::string& detail = "");
+  bool tty() const { return tty_; }
 
  private:
   std::string label_;
   long long total_;
   bool tty_;
-  std::chrono::steady_clock::time_point start_, last_;
+  bool finished_ = false;
+  long long first_done_ = -1;
+  long long drawn_done_ = -1;  // the rate counts from the first update (work before it is not timed)
+  std::chrono::steady_clock::time_point first_, last_;
 };
 
 }  // namespace atex::cli

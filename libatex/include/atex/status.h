@@ -118,5 +118,6 @@ class [[nodiscard]] StatusOr {
   lhs = std::move(tmp).value()
 
 // ATEX_ASSIGN_OR_RETURN(auto x, FunctionReturningStatusOr());
+// Expands to several statements: use it inside braces, never as the body of a bare if/for.
 #define ATEX_ASSIGN_OR_RETURN(lhs, expr) \
   ATEX_ASSIGN_OR_RETURN_IMPL(ATEX_STATUS_CONCAT(atex_statusor_, __LINE__), lhs, expr)

@@ -1,4 +1,16 @@
-# Module 'train': sources appended to libatex; tests registered in atex_train_tests().
-list(APPEND ATEX_LIB_SOURCES)
+# Module 'train': the training loop, schedules, host-side decisions, the Backend
+# interface and its CPU implementation.
+list(APPEND ATEX_LIB_SOURCES
+  ${CMAKE_CURRENT_LIST_DIR}/config.cc
+  ${CMAKE_CURRENT_LIST_DIR}/schedule.cc
+  ${CMAKE_CURRENT_LIST_DIR}/densify.cc
+  ${CMAKE_CURRENT_LIST_DIR}/texture_growth.cc
+  ${CMAKE_CURRENT_LIST_DIR}/cpu_backend.cc
+  ${CMAKE_CURRENT_LIST_DIR}/checkpoint.cc
+  ${CMAKE_CURRENT_LIST_DIR}/trainer.cc
+  ${CMAKE_CURRENT_LIST_DIR}/report.cc)
 function(atex_train_tests)
+  set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
+  atex_add_test(NAME train_test LIBS atex SOURCES
+    ${dir}/config_test.cc ${dir}/densify_test.cc ${dir}/texture_growth_test.cc)
 endfunction()

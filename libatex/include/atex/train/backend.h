@@ -1,0 +1,173 @@
+// The boundary between the training loop (host decisions) and an engine that
+// owns parameters and computes (CPU reference or CUDA).
+//
+// A backend holds the model parameters and their Adam moments. Each Step renders
+// a batch of views (deform → project → rasterise), computes the loss, runs the
+// backward pass, applies one Adam update and accumulates per-Gaussian statistics.
+// The loop reads the statistics, decides on the host (densification, texture
+// growth) and sends the edits back, so every backend makes identical decisions.
+// With several GPUs, each rank runs Step on its own views; gradients and
+// statistics are summed across ranks by the backend before Adam / ReadStats.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "atex/camera.h"
+#include "atex/image.h"
+#include "atex/model.h"
+#include "atex/status.h"
+
+namespace atex::train {
+
+// Parameter groups, each with its own learning rate.
+enum ParamGroup : int {
+  kGroupPositions = 0,
+  kGroupRotations,
+  kGroupLogScales,
+  kGroupOpacity,
+  kGroupShDc,    // SH coefficient 0
+  kGroupShRest,  // SH coefficients 1..K-1
+  kGroupTexels,
+  kGroupGrid,    // HexPlane planes
+  kGroupMlp,     // trunk and heads
+  kParamGroupCount
+};
+const char* ParamGroupName(int group);
+
+// Parameters + Adam state: what a backend loads and saves (checkpoints, edits).
+struct ModelState {
+  Gaussians gaussians;                      // canonical parameters
+  std::optional<TexturePool> textures;
+  std::optional<DeformationField> deformation;
+  // Adam first and second moments, same shapes as the parameters above.
+  Gaussians m_gaussians, v_gaussians;
+  std::vector<float> m_texels, v_texels;    // [texel_count][4]
+  std::optional<DeformationField> m_deformation, v_deformation;
+  std::array<int64_t, kParamGroupCount> adam_steps{};  // per-group update counts (bias correction)
+};
+// Zero moments shaped like the parameters (for a fresh start or new groups).
+void ResetMoments(ModelState* state);
+
+struct AdamSettings {
+  double beta1 = 0.9;
+  double beta2 = 0.999;
+  double epsilon = 1e-15;  // 4DGaussians / 3DGS
+};
+
+// One training view: its camera (with time) and target image [H][W][3].
+struct TrainView {
+  const Camera* camera = nullptr;
+  const Image* target = nullptr;
+  uint64_t image_key = 0;  // stable id of the target image (lets a backend cache it on the device)
+};
+
+struct StepRequest {
+  std::array<double, kParamGroupCount> learning_rates{};  // 0 freezes a group
+  int active_sh_degree = 0;
+  bool apply_deformation = false;  // false in the coarse (static) stage
+  bool use_textures = false;
+  double lambda_dssim = 0.2;
+  // Deformation regularisers (fine stage); zero weights switch them off.
+  double plane_tv = 0, time_smoothness = 0, time_l1 = 0;
+  bool accumulate_densify_stats = false;
+  bool accumulate_texture_stats = false;
+  bool accumulate_importance = false;  // sum of blending weights per Gaussian (fitter, pruning)
+  int time_bins = 8;
+  double time_min = 0, time_max = 1;  // for the temporal bins
+  std::array<float, 3> background{0, 0, 0};
+  float near_plane = 0.01f;
+};
+
+struct StepResult {
+  double loss = 0;                 // mean over the batch (photometric + regularisers)
+  double photometric_loss = 0;
+  std::vector<double> view_psnr;   // per view of the batch
+  size_t visible = 0;              // (view, Gaussian) pairs with positive radius
+  bool finite = true;              // false if a NaN/Inf appeared in the loss or gradients (no update applied)
+};
+
+// Per-Gaussian statistics accumulated since the last reset (summed over views and ranks).
+struct DensifyStats {
+  std::vector<float> grad_norm_sum;  // [N] sum of |dL_k/dm| (NDC units) over visible occurrences
+  std::vector<float> visible_count;  // [N]
+  std::vector<float> max_radius;     // [N] largest screen radius (pixels)
+};
+struct TextureStats {
+  int bins = 0;
+  std::vector<float> demand_sum;    // [N][bins] sum of q over visible occurrences
+  std::vector<float> visible_count; // [N][bins]
+  std::vector<float> scale_u_sum;   // [N][bins] sum of the deformed scale along axis_u
+  std::vector<float> scale_v_sum;   // [N][bins]
+};
+struct TrainingStats {
+  DensifyStats densify;
+  TextureStats texture;
+  std::vector<float> importance;    // [N] sum of blending weights over all rendered pixels
+};
+enum StatsKind : int { kStatsDensify = 1, kStatsTexture = 2, kStatsImportance = 4, kStatsAll = 7 };
+
+// Densification / pruning as a gather: new Gaussian j takes old Gaussian source[j]'s
+// parameters, texture and Adam moments, then the overrides.
+struct GaussianEdit {
+  std::vector<uint32_t> source;      // [M]
+  std::vector<float> positions;      // [M][3] absolute values, or empty (keep)
+  std::vector<float> log_scales;     // [M][3] absolute values, or empty (keep)
+  std::vector<uint8_t> reset_moments;  // [M] 1: zero the per-Gaussian Adam moments, or empty (keep all)
+  // Opacity reset (3DGS): cap every opacity logit at this value and zero its moments (NaN = off).
+  float cap_opacity_logit = std::numeric_limits<float>::quiet_NaN();
+};
+
+// Texture growth: new per-Gaussian sides (each >= the old one, in {1, 2, 4}).
+struct TextureResize {
+  std::vector<uint8_t> heights;  // [N]
+  std::vector<uint8_t> widths;   // [N]
+};
+
+struct RenderRequest {
+  int active_sh_degree = 3;
+  bool apply_deformation = true;
+  bool use_textures = true;
+  std::array<float, 3> background{0, 0, 0};
+  float near_plane = 0.01f;
+};
+
+class Backend {
+ public:
+  virtual ~Backend() = default;
+  virtual std::string name() const = 0;
+
+  // Replaces the whole state (parameters, moments, step counters). Resets statistics.
+  virtual Status Load(const ModelState& state) = 0;
+  // Copies the whole state out (checkpoints, final asset).
+  virtual Status Save(ModelState* state) = 0;
+  // Copies only the canonical Gaussians out (cheap; densification planning).
+  virtual Status ReadGaussians(Gaussians* gaussians) = 0;
+
+  virtual StatusOr<StepResult> Step(const StepRequest& request, std::span<const TrainView> views) = 0;
+
+  virtual Status ReadStats(int kinds, TrainingStats* stats) = 0;
+  virtual Status ResetStats(int kinds) = 0;
+
+  virtual Status ApplyEdit(const GaussianEdit& edit) = 0;
+  // Attaches textures (zero texels, zero moments) with the given layout, or replaces the layout.
+  virtual Status AttachTextures(const TexturePool& layout) = 0;
+  virtual Status ResizeTextures(const TextureResize& resize) = 0;
+
+  // Renders [H][W][3] at the camera's time.
+  virtual StatusOr<Image> Render(const Camera& camera, const RenderRequest& request) = 0;
+
+  // Peak device memory in bytes since creation (0 if not tracked).
+  virtual uint64_t PeakMemoryBytes() const { return 0; }
+};
+
+// The CPU reference backend (libatex/src/train/cpu_backend.cc).
+std::unique_ptr<Backend> MakeCpuBackend(const AdamSettings& adam = {});
+
+}  // namespace atex::train

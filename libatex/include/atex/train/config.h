@@ -1,0 +1,119 @@
+// Training configuration: every value of both stages, loadable from JSON and
+// overridable key by key ("stage1.batch_size=2"). The defaults are 4DGaussians'
+// schedule (REFERENCE.md §1) for stage 1 and the AdaTex4D paper (§2) for stage 2;
+// configs/*.json hold the same values per dataset for users to copy.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "atex/model.h"
+#include "atex/render.h"  // TextureMode
+#include "atex/status.h"
+
+namespace atex::train {
+
+// Exponential interpolation from `initial` to `final` over `max_steps`, with
+// 3DGS's optional delayed warm-up (delay_mult < 1 scales the first delay_steps).
+struct ExpDecay {
+  double initial = 0;
+  double final = 0;
+  int max_steps = 20000;
+  int delay_steps = 0;
+  double delay_mult = 1.0;
+  double At(int step) const;
+};
+
+struct LearningRates {
+  ExpDecay position{1.6e-4, 1.6e-6, 20000};  // multiplied by the scene extent
+  double sh_dc = 2.5e-3;
+  double sh_rest = 2.5e-3 / 20.0;            // 1.25e-4
+  double opacity = 0.05;
+  double log_scale = 5e-3;
+  double rotation = 1e-3;
+  ExpDecay mlp{1.6e-4, 1.6e-5, 20000};
+  ExpDecay grid{1.6e-3, 1.6e-4, 20000};
+  double texels = 0.0025;                    // stage 2 (paper)
+};
+
+struct DensifyConfig {
+  bool enabled = true;
+  int from_step = 500;
+  int until_step = 10000;       // counted within the stage (4DGaussians: densify_until_iter)
+  int interval = 100;
+  double grad_threshold = 2e-4; // mean NDC projected-centre gradient (conventions §6)
+  double percent_dense = 0.01;  // clone if max scale <= percent_dense * extent, else split
+  double min_opacity = 0.005;   // prune below
+  int opacity_reset_interval = 0;  // 0 = never (4DGaussians' dynerf config effectively disables it)
+  double max_screen_radius = 0;    // prune larger screen radii (pixels); 0 = off
+  size_t max_gaussians = 2000000;  // densification stops adding beyond this
+};
+
+struct RegularizerConfig {
+  double plane_tv = 2e-4;
+  double time_smoothness = 1e-3;
+  double time_l1 = 1e-4;
+};
+
+struct Stage1Config {
+  int coarse_iterations = 3000;
+  int fine_iterations = 14000;
+  int batch_size = 4;
+  double lambda_dssim = 0.2;
+  int sh_degree = 3;
+  int sh_increase_interval = 1000;
+  LearningRates lr;
+  DensifyConfig densify;
+  RegularizerConfig regularizer;
+  DeformationConfig deformation;  // grid/MLP shape; AABB and time mapping are set from the data
+  // Initialisation without a point cloud (data/init.h methods: "auto", "hull", "random", "hull+random").
+  std::string init_method = "auto";
+  size_t init_points = 100000;
+};
+
+struct GrowthAblations {
+  bool temporal_peak = true;              // false: score = mean over bins only
+  bool anisotropic = true;                // false: always (2h, 2w)
+  bool visibility_normalization = true;   // false: per-bin SUM of demand instead of the mean over visible occurrences
+};
+
+struct Stage2Config {
+  int iterations = 5000;
+  int batch_size = 8;
+  double lambda_dssim = 0.2;
+  TextureMode textures = TextureMode::kAdaptive;
+  std::vector<int> growth_steps{500, 1000};
+  double growth_threshold = 2e-5;
+  int time_bins = 8;
+  double anisotropy_ratio = 4.0;     // s_u / s_v above this grows one axis only
+  double anisotropy_max_scale = 0.01;  // ... and only when the short side is below this (world units)
+  // Global texel budget as a fraction of what uniform 4x4 would use (16 texels per Gaussian).
+  double texel_budget_fraction = 1.0;
+  GrowthAblations ablations;
+  // [choice] the 4DGS parameters continue at stage 1's final learning rates.
+};
+
+struct TrainConfig {
+  uint64_t seed = 6666;
+  Stage1Config stage1;
+  Stage2Config stage2;
+  std::array<float, 3> background{0, 0, 0};
+  float near_plane = 0.01f;
+  int eval_every = 1000;        // test-view evaluation during training (0 = only at the end)
+  int checkpoint_every = 2000;  // 0 = never
+};
+
+// Defaults for a dataset kind ("panoptic", "dnerf", "n3dv"); unknown kinds get the generic defaults.
+TrainConfig DefaultConfig(std::string_view dataset_kind);
+
+nlohmann::json ConfigToJson(const TrainConfig& config);
+// Reads a (possibly partial) JSON object on top of `base`; unknown keys are an error naming the key.
+StatusOr<TrainConfig> ConfigFromJson(const nlohmann::json& json, const TrainConfig& base);
+// Applies "a.b.c=value" (value parsed as JSON, or as a string when it is not valid JSON).
+StatusOr<TrainConfig> ApplyOverride(const TrainConfig& config, std::string_view assignment);
+
+}  // namespace atex::train

@@ -1,0 +1,30 @@
+// Densification and pruning decisions (3DGS / 4DGaussians), made on the host from
+// the statistics a backend accumulated, and expressed as a GaussianEdit.
+#pragma once
+
+#include <cstdint>
+
+#include "atex/model.h"
+#include "atex/status.h"
+#include "atex/train/backend.h"
+#include "atex/train/config.h"
+
+namespace atex::train {
+
+struct DensifyReport {
+  size_t before = 0, cloned = 0, split = 0, pruned = 0, after = 0;
+};
+
+// Clone small Gaussians whose mean projected-centre gradient reaches the threshold,
+// split large ones into two (positions drawn from the Gaussian, scales / 1.6), prune
+// those below the opacity threshold (and, when set, with too large a screen radius).
+// New Gaussians get zero Adam moments; parents of a split are removed. `seed` makes the
+// split positions deterministic. `extent` is the scene extent (3DGS's cameras_extent).
+StatusOr<GaussianEdit> PlanDensification(const Gaussians& canonical, const DensifyStats& stats,
+                                         const DensifyConfig& config, double extent, bool prune_screen_size,
+                                         uint64_t seed, DensifyReport* report);
+
+// Pruning only (used after an opacity reset or for a fixed Gaussian count).
+GaussianEdit PlanPrune(const Gaussians& canonical, const std::vector<uint8_t>& remove /*[N] 1 = drop*/);
+
+}  // namespace atex::train

@@ -1,0 +1,46 @@
+// Deterministic camera schedule: which training views each step (and each rank)
+// uses, from the seed alone, so that paired runs see the same views in the same order.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace atex::train {
+
+// An endless stream of epochs; each epoch is a permutation of [0, view_count)
+// drawn from (seed, epoch) with a counter-based generator. Global step s with
+// global batch B uses stream positions [s*B, (s+1)*B); rank r of R takes the
+// contiguous slice of B/R positions starting at s*B + r*(B/R).
+class CameraSchedule {
+ public:
+  CameraSchedule(uint64_t seed, size_t view_count);
+  // View indices of `step` for `rank` of `world_size` (batch divisible by world_size).
+  std::vector<size_t> Views(int64_t step, int batch, int rank = 0, int world_size = 1) const;
+  // The view at absolute stream position `position`.
+  size_t ViewAt(uint64_t position) const;
+
+ private:
+  std::vector<size_t> Permutation(uint64_t epoch) const;
+  uint64_t seed_;
+  size_t view_count_;
+  mutable uint64_t cached_epoch_ = ~uint64_t{0};
+  mutable std::vector<size_t> cached_;
+};
+
+// SplitMix64: the project's small deterministic generator (no std:: distribution,
+// whose results differ between standard libraries).
+struct SplitMix64 {
+  uint64_t state;
+  explicit SplitMix64(uint64_t seed) : state(seed) {}
+  uint64_t Next() {
+    uint64_t z = (state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  double Uniform() { return (Next() >> 11) * (1.0 / 9007199254740992.0); }  // [0, 1)
+  double Normal();  // Box-Muller
+};
+
+}  // namespace atex::train

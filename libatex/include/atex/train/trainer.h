@@ -1,0 +1,97 @@
+// The training loop of both stages (docs/architecture.md, "Training").
+//
+// Stage 1 (4DGaussians): initial Gaussians from the dataset (init.h), a coarse
+// static phase, then the deformation phase, with densification and pruning.
+// Stage 2 (AdaTex4D): one texture plane per Gaussian, joint fine-tuning with the
+// topology fixed, anisotropic texture growth at the configured steps.
+// Every decision is made here on the host; the Backend computes.
+#pragma once
+
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "atex/dataset.h"
+#include "atex/metrics.h"
+#include "atex/model.h"
+#include "atex/status.h"
+#include "atex/train/backend.h"
+#include "atex/train/config.h"
+#include "atex/train/densify.h"
+#include "atex/train/texture_growth.h"
+
+namespace atex::train {
+
+struct TrainProgress {
+  std::string phase;  // "coarse", "fine", "textures"
+  int step = 0;       // within the phase (1-based after the step)
+  int total = 0;
+  double loss = 0;
+  double psnr = 0;    // mean over the step's views
+  size_t gaussians = 0;
+  std::string event;  // non-empty for densification, growth, rollbacks, evaluations
+};
+// Return false to stop training (Train then fails with kCancelled after a final checkpoint).
+using ProgressCallback = std::function<bool(const TrainProgress&)>;
+
+enum Stages : int { kStage1 = 1, kStage2 = 2, kBothStages = 3 };
+
+struct TrainerOptions {
+  TrainConfig config;
+  int stages = kBothStages;
+  std::string checkpoint_dir;  // periodic checkpoints (empty: none)
+  std::string resume_dir;      // continue from a checkpoint written by a previous run
+  std::string metrics_csv;     // one row per logged step (empty: none)
+  int log_every = 10;          // progress/CSV interval in steps
+  ProgressCallback progress;
+  int rank = 0, world_size = 1;  // data parallelism (the backend sums across ranks)
+};
+
+struct ViewMetrics {
+  int camera_id = -1;
+  int timestep = -1;
+  ImageMetrics metrics;
+};
+struct EvalResult {
+  std::vector<ViewMetrics> views;
+  ImageMetrics mean;  // unweighted mean over views
+};
+
+struct TrainSummary {
+  Asset asset;
+  double coarse_seconds = 0, fine_seconds = 0, textures_seconds = 0;
+  int coarse_steps = 0, fine_steps = 0, texture_steps = 0;
+  std::vector<DensifyReport> densifications;
+  std::vector<GrowthReport> growths;
+  std::vector<std::string> events;  // rollbacks and other notes, in order
+  EvalResult test;                  // test views at the end (empty when the dataset has none)
+  uint64_t peak_memory_bytes = 0;
+};
+
+// Trains per options.stages. Stage 2 alone needs `initial` (a stage-1 asset with its
+// deformation field); stage 1 ignores it. The returned asset carries metadata
+// (provenance, config) and per-Gaussian statistics for `atex fit`.
+StatusOr<TrainSummary> Train(const Dataset& dataset, Backend& backend, const TrainerOptions& options,
+                             const Asset* initial = nullptr);
+
+// Renders `views` with the backend's current model and compares with the dataset's
+// images (renders clamped to [0, 1] first, as 3DGS evaluates).
+StatusOr<EvalResult> Evaluate(const Dataset& dataset, Backend& backend, const std::vector<View>& views,
+                              const RenderRequest& request);
+
+// The scene extent 3DGS uses for learning rates and densification: 1.1 × the largest
+// distance of a training camera centre from their mean.
+double CameraExtent(const std::vector<View>& views);
+
+// Model state <-> asset (canonical parameters only; moments reset).
+ModelState StateFromAsset(const Asset& asset);
+Asset AssetFromState(const ModelState& state, const Metadata& metadata);
+
+}  // namespace atex::train
+
+namespace atex::train {
+// JSON forms for reports (`atex train --json`, `atex eval --json`, benchmarks).
+nlohmann::json EvalToJson(const EvalResult& eval);
+nlohmann::json SummaryToJson(const TrainSummary& summary);
+}  // namespace atex::train

@@ -1,0 +1,73 @@
+#include "atex/train/config.h"
+
+#include <gtest/gtest.h>
+
+#include "atex/train/schedule.h"
+
+namespace atex::train {
+namespace {
+
+TEST(Config, JsonRoundTripAndOverrides) {
+  TrainConfig config = DefaultConfig("panoptic");
+  auto back = ConfigFromJson(ConfigToJson(config), TrainConfig{});
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(ConfigToJson(*back), ConfigToJson(config));
+
+  auto changed = ApplyOverride(config, "stage1.batch_size=2");
+  ASSERT_TRUE(changed.ok()) << changed.status().ToString();
+  EXPECT_EQ(changed->stage1.batch_size, 2);
+  changed = ApplyOverride(*changed, "stage2.textures=uniform");
+  ASSERT_TRUE(changed.ok()) << changed.status().ToString();
+  EXPECT_EQ(changed->stage2.textures, TextureMode::kUniform);
+  changed = ApplyOverride(*changed, "stage1.deformation.grid.multires=[1,2,4]");
+  ASSERT_TRUE(changed.ok()) << changed.status().ToString();
+  EXPECT_EQ(changed->stage1.deformation.grid.multires, (std::vector<int>{1, 2, 4}));
+}
+
+TEST(Config, UnknownKeysAndBadValuesAreErrors) {
+  TrainConfig config;
+  auto bad = ApplyOverride(config, "stage1.batchsize=2");
+  EXPECT_EQ(bad.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(bad.status().message().find("stage1.batchsize"), std::string::npos);
+  EXPECT_FALSE(ApplyOverride(config, "stage2.textures=fancy").ok());
+  EXPECT_FALSE(ApplyOverride(config, "stage1.batch_size=\"four\"").ok());
+  EXPECT_FALSE(ApplyOverride(config, "no_equals_sign").ok());
+}
+
+TEST(Config, DatasetDefaultsFollowFourDGaussians) {
+  EXPECT_EQ(DefaultConfig("dnerf").stage1.deformation.grid.channels, 32);
+  EXPECT_EQ(DefaultConfig("dnerf").stage1.deformation.mlp_width, 64);
+  EXPECT_EQ(DefaultConfig("n3dv").stage1.deformation.grid.base_resolution[3], 150);
+  EXPECT_EQ(DefaultConfig("n3dv").stage1.batch_size, 4);
+  EXPECT_EQ(DefaultConfig("n3dv").stage2.batch_size, 8);
+}
+
+TEST(ExpDecay, EndpointsAndMonotone) {
+  ExpDecay d{1.6e-4, 1.6e-6, 20000};
+  EXPECT_NEAR(d.At(0), 1.6e-4, 1e-12);
+  EXPECT_NEAR(d.At(20000), 1.6e-6, 1e-14);
+  EXPECT_NEAR(d.At(40000), 1.6e-6, 1e-14);
+  EXPECT_NEAR(d.At(10000), 1.6e-5, 1e-12);  // geometric midpoint
+  EXPECT_GT(d.At(100), d.At(200));
+}
+
+TEST(CameraSchedule, EpochsArePermutationsAndRanksPartitionTheBatch) {
+  CameraSchedule schedule(6666, 27);
+  std::vector<int> seen(27, 0);
+  for (int i = 0; i < 27; ++i) seen[schedule.ViewAt(27 + i)]++;
+  for (int c : seen) EXPECT_EQ(c, 1);
+  // Two ranks of batch 8 see exactly the single-rank batch.
+  auto all = schedule.Views(5, 8);
+  auto r0 = schedule.Views(5, 8, 0, 2), r1 = schedule.Views(5, 8, 1, 2);
+  r0.insert(r0.end(), r1.begin(), r1.end());
+  EXPECT_EQ(all, r0);
+  // Same seed, same stream; another seed differs.
+  CameraSchedule same(6666, 27), other(1, 27);
+  EXPECT_EQ(same.Views(3, 4), schedule.Views(3, 4));
+  bool differs = false;
+  for (int s = 0; s < 5; ++s) differs |= other.Views(s, 4) != schedule.Views(s, 4);
+  EXPECT_TRUE(differs);
+}
+
+}  // namespace
+}  // namespace atex::train

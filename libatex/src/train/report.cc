@@ -1,0 +1,77 @@
+// JSON forms of training and evaluation results.
+#include "atex/container.h"
+#include "atex/train/trainer.h"
+
+namespace atex::train {
+
+static nlohmann::json MetricsToJson(const ImageMetrics& m) {
+  return {{"psnr", m.psnr}, {"ssim", m.ssim}, {"dssim1", m.dssim1}, {"dssim2", m.dssim2}, {"l1", m.l1}};
+}
+
+nlohmann::json EvalToJson(const EvalResult& eval) {
+  nlohmann::json views = nlohmann::json::array();
+  for (const auto& v : eval.views) {
+    nlohmann::json j = MetricsToJson(v.metrics);
+    j["camera"] = v.camera_id;
+    j["timestep"] = v.timestep;
+    views.push_back(std::move(j));
+  }
+  // Per camera: mean over its timesteps (the benchmark tables report cameras).
+  std::map<int, std::pair<ImageMetrics, int>> per_camera;
+  for (const auto& v : eval.views) {
+    auto& [sum, n] = per_camera[v.camera_id];
+    sum.psnr += v.metrics.psnr;
+    sum.ssim += v.metrics.ssim;
+    sum.dssim1 += v.metrics.dssim1;
+    sum.dssim2 += v.metrics.dssim2;
+    sum.l1 += v.metrics.l1;
+    ++n;
+  }
+  nlohmann::json cameras = nlohmann::json::array();
+  for (auto& [camera, entry] : per_camera) {
+    ImageMetrics m = entry.first;
+    const double n = entry.second;
+    m.psnr /= n, m.ssim /= n, m.dssim1 /= n, m.dssim2 /= n, m.l1 /= n;
+    nlohmann::json j = MetricsToJson(m);
+    j["camera"] = camera;
+    j["views"] = entry.second;
+    cameras.push_back(std::move(j));
+  }
+  return {{"mean", MetricsToJson(eval.mean)}, {"cameras", cameras}, {"views", views}};
+}
+
+nlohmann::json SummaryToJson(const TrainSummary& s) {
+  nlohmann::json growth = nlohmann::json::array();
+  for (const auto& g : s.growths) {
+    growth.push_back({{"candidates", g.candidates},
+                      {"grown", g.grown},
+                      {"grown_u_only", g.grown_u_only},
+                      {"grown_v_only", g.grown_v_only},
+                      {"grown_both", g.grown_both},
+                      {"rejected_budget", g.rejected_budget},
+                      {"texels_before", g.texels_before},
+                      {"texels_after", g.texels_after},
+                      {"texel_budget", g.texel_budget}});
+  }
+  nlohmann::json j = {
+      {"gaussians", s.asset.gaussians.size()},
+      {"seconds", {{"coarse", s.coarse_seconds}, {"fine", s.fine_seconds}, {"textures", s.textures_seconds}}},
+      {"steps", {{"coarse", s.coarse_steps}, {"fine", s.fine_steps}, {"textures", s.texture_steps}}},
+      {"densifications", s.densifications.size()},
+      {"growth", growth},
+      {"events", s.events},
+      {"peak_memory_bytes", s.peak_memory_bytes},
+  };
+  if (!s.test.views.empty()) j["test"] = EvalToJson(s.test);
+  if (s.asset.textures) {
+    const TextureHistogram h = ComputeTextureHistogram(*s.asset.textures);
+    nlohmann::json counts = nlohmann::json::object();
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) counts[std::to_string(1 << a) + "x" + std::to_string(1 << b)] = h.counts[a][b];
+    }
+    j["textures"] = {{"histogram_hxw", counts}, {"texels", h.texels}, {"uniform_texels", h.uniform_texels()}};
+  }
+  return j;
+}
+
+}  // namespace atex::train

@@ -1,0 +1,500 @@
+#include "atex/train/trainer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+
+#include "atex/deform.h"
+#include "atex/init.h"
+#include "atex/render.h"
+#include "atex/train/checkpoint.h"
+#include "atex/train/schedule.h"
+
+namespace atex::train {
+
+double CameraExtent(const std::vector<View>& views) {
+  if (views.empty()) return 1.0;
+  std::array<double, 3> mean{0, 0, 0};
+  for (const View& v : views) {
+    const auto c = v.camera.Center();
+    for (int k = 0; k < 3; ++k) mean[k] += c[k] / views.size();
+  }
+  double radius = 0;
+  for (const View& v : views) {
+    const auto c = v.camera.Center();
+    radius = std::max(radius, std::hypot(c[0] - mean[0], c[1] - mean[1], c[2] - mean[2]));
+  }
+  return radius > 0 ? 1.1 * radius : 1.0;
+}
+
+ModelState StateFromAsset(const Asset& asset) {
+  ModelState state;
+  state.gaussians = asset.gaussians;
+  state.textures = asset.textures;
+  state.deformation = asset.deformation;
+  ResetMoments(&state);
+  return state;
+}
+
+Asset AssetFromState(const ModelState& state, const Metadata& metadata) {
+  Asset asset;
+  asset.gaussians = state.gaussians;
+  asset.textures = state.textures;
+  asset.deformation = state.deformation;
+  asset.metadata = metadata;
+  return asset;
+}
+
+StatusOr<EvalResult> Evaluate(const Dataset& dataset, Backend& backend, const std::vector<View>& views,
+                              const RenderRequest& request) {
+  EvalResult result;
+  for (const View& view : views) {
+    ATEX_ASSIGN_OR_RETURN(Image rendered, backend.Render(view.camera, request));
+    for (float& v : rendered.pixels) v = std::clamp(v, 0.0f, 1.0f);
+    ATEX_ASSIGN_OR_RETURN(auto target, dataset.LoadImage(view));
+    ATEX_ASSIGN_OR_RETURN(ImageMetrics m, CompareImages(rendered, *target));
+    result.views.push_back({view.camera_id, view.timestep, m});
+  }
+  const double n = static_cast<double>(std::max<size_t>(1, result.views.size()));
+  for (const auto& v : result.views) {
+    result.mean.psnr += v.metrics.psnr / n;
+    result.mean.ssim += v.metrics.ssim / n;
+    result.mean.dssim1 += v.metrics.dssim1 / n;
+    result.mean.dssim2 += v.metrics.dssim2 / n;
+    result.mean.l1 += v.metrics.l1 / n;
+    result.mean.mse += v.metrics.mse / n;
+  }
+  return result;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
+
+// One training phase: a step range with its own learning-rate schedule.
+enum class Phase { kCoarse, kFine, kTextures };
+const char* PhaseName(Phase p) {
+  switch (p) {
+    case Phase::kCoarse: return "coarse";
+    case Phase::kFine: return "fine";
+    case Phase::kTextures: return "textures";
+  }
+  return "?";
+}
+
+class Loop {
+ public:
+  Loop(const Dataset& dataset, Backend& backend, const TrainerOptions& options)
+      : data_(dataset), backend_(backend), options_(options), config_(options.config),
+        schedule_(config_.seed, dataset.train_views().size()) {}
+
+  StatusOr<TrainSummary> Run(const Asset* initial) {
+    if (data_.train_views().empty()) return MakeError(StatusCode::kInvalidArgument, "dataset has no training views");
+    extent_ = CameraExtent(data_.train_views());
+    if (!options_.metrics_csv.empty()) {
+      csv_.open(options_.metrics_csv, std::ios::out | std::ios::trunc);
+      if (!csv_) return MakeError(StatusCode::kIoError, "cannot write ", options_.metrics_csv);
+      csv_ << "phase,step,loss,psnr,gaussians,lr_position,seconds\n";
+    }
+    Phase start_phase = Phase::kCoarse;
+    int start_step = 0;
+    if (!options_.resume_dir.empty()) {
+      ATEX_ASSIGN_OR_RETURN(Checkpoint cp, ReadCheckpoint(options_.resume_dir));
+      metadata_ = cp.metadata;
+      const std::string phase = cp.trainer.value("phase", "coarse");
+      start_phase = phase == "fine" ? Phase::kFine : phase == "textures" ? Phase::kTextures : Phase::kCoarse;
+      start_step = cp.trainer.value("step", 0);
+      lr_scale_ = cp.trainer.value("lr_scale", 1.0);
+      total_steps_ = cp.trainer.value("total_steps", 0);
+      ATEX_RETURN_IF_ERROR(backend_.Load(cp.state));
+      Event(StrCat("resumed from ", options_.resume_dir, " at ", PhaseName(start_phase), " step ", start_step));
+    } else if (options_.stages & kStage1) {
+      ATEX_RETURN_IF_ERROR(InitializeStage1());
+    } else {
+      if (initial == nullptr || !initial->deformation) {
+        return MakeError(StatusCode::kInvalidArgument,
+                         "stage 2 alone needs a stage-1 asset with a deformation field (--init)");
+      }
+      metadata_ = initial->metadata;
+      ATEX_RETURN_IF_ERROR(backend_.Load(StateFromAsset(*initial)));
+      start_phase = Phase::kTextures;
+    }
+
+    const std::vector<Phase> phases = PhasesToRun(start_phase);
+    for (Phase phase : phases) {
+      const int first = phase == start_phase ? start_step : 0;
+      if (phase == Phase::kTextures && first == 0) ATEX_RETURN_IF_ERROR(AttachTextures());
+      ATEX_RETURN_IF_ERROR(RunPhase(phase, first));
+    }
+    return Finish();
+  }
+
+ private:
+  std::vector<Phase> PhasesToRun(Phase start) const {
+    std::vector<Phase> phases;
+    if (options_.stages & kStage1) {
+      phases.push_back(Phase::kCoarse);
+      phases.push_back(Phase::kFine);
+    }
+    if ((options_.stages & kStage2) && config_.stage2.textures != TextureMode::kNone) {
+      phases.push_back(Phase::kTextures);
+    }
+    auto it = std::find(phases.begin(), phases.end(), start);
+    return it == phases.end() ? std::vector<Phase>{} : std::vector<Phase>(it, phases.end());
+  }
+
+  Status InitializeStage1() {
+    const Stage1Config& s1 = config_.stage1;
+    InitOptions init;
+    ATEX_ASSIGN_OR_RETURN(init.method, ParseInitMethod(s1.init_method));
+    init.seed = config_.seed;
+    init.sh_degree = s1.sh_degree;
+    if (s1.init_points > 0) {
+      init.cube_points = static_cast<int>(s1.init_points);
+      init.hull_points = static_cast<int>(s1.init_points * 2 / 3);
+      init.volume_points = static_cast<int>(s1.init_points / 3);
+    }
+    InitReport report;
+    ATEX_ASSIGN_OR_RETURN(Gaussians gaussians, InitializeGaussians(data_, init, &report));
+    Event(StrCat("initialised ", gaussians.size(), " Gaussians (", InitMethodName(report.method), ")"));
+
+    // The deformation field's AABB is the initial cloud's (4DGaussians), time spans [-1, 1].
+    DeformationConfig dc = s1.deformation;
+    dc.sh_coeffs = ShCoeffCount(s1.sh_degree);
+    std::array<float, 3> lo{1e30f, 1e30f, 1e30f}, hi{-1e30f, -1e30f, -1e30f};
+    for (size_t i = 0; i < gaussians.size(); ++i) {
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = std::min(lo[k], gaussians.positions[3 * i + k]);
+        hi[k] = std::max(hi[k], gaussians.positions[3 * i + k]);
+      }
+    }
+    for (int k = 0; k < 3; ++k) {
+      if (!(hi[k] > lo[k])) hi[k] = lo[k] + 1.0f;
+    }
+    dc.aabb_lo = lo;
+    dc.aabb_hi = hi;
+    const double span = data_.time_max() - data_.time_min();
+    dc.time_scale = span > 0 ? static_cast<float>(2.0 / span) : 1.0f;
+    dc.time_offset = span > 0 ? static_cast<float>(-1.0 - 2.0 * data_.time_min() / span) : 0.0f;
+    ATEX_ASSIGN_OR_RETURN(DeformationField field, InitDeformationField(dc, config_.seed));
+
+    metadata_.bounds_min = lo;
+    metadata_.bounds_max = hi;
+    metadata_.time_min = data_.time_min();
+    metadata_.time_max = data_.time_max();
+    metadata_.background = config_.background;
+    ModelState state;
+    state.gaussians = std::move(gaussians);
+    state.deformation = std::move(field);
+    ResetMoments(&state);
+    return backend_.Load(state);
+  }
+
+  Status AttachTextures() {
+    Gaussians canonical;
+    ATEX_RETURN_IF_ERROR(backend_.ReadGaussians(&canonical));
+    ATEX_ASSIGN_OR_RETURN(TexturePool pool, atex::AttachTextures(canonical, config_.stage2.textures));
+    texel_budget_ = static_cast<uint64_t>(std::llround(config_.stage2.texel_budget_fraction * 16.0 *
+                                                       static_cast<double>(canonical.size())));
+    Event(StrCat("attached ", TextureModeName(config_.stage2.textures), " textures to ", canonical.size(),
+                 " Gaussians (texel budget ", texel_budget_, ")"));
+    return backend_.AttachTextures(pool);
+  }
+
+  int Iterations(Phase phase) const {
+    switch (phase) {
+      case Phase::kCoarse: return config_.stage1.coarse_iterations;
+      case Phase::kFine: return config_.stage1.fine_iterations;
+      case Phase::kTextures: return config_.stage2.iterations;
+    }
+    return 0;
+  }
+
+  StepRequest MakeRequest(Phase phase, int step) const {
+    const Stage1Config& s1 = config_.stage1;
+    const LearningRates& lr = s1.lr;
+    StepRequest r;
+    const bool textures = phase == Phase::kTextures;
+    const double position = textures ? lr.position.final : lr.position.At(step);
+    r.learning_rates[kGroupPositions] = position * extent_ * lr_scale_;
+    r.learning_rates[kGroupRotations] = lr.rotation * lr_scale_;
+    r.learning_rates[kGroupLogScales] = lr.log_scale * lr_scale_;
+    r.learning_rates[kGroupOpacity] = lr.opacity * lr_scale_;
+    r.learning_rates[kGroupShDc] = lr.sh_dc * lr_scale_;
+    r.learning_rates[kGroupShRest] = lr.sh_rest * lr_scale_;
+    if (phase != Phase::kCoarse) {
+      r.learning_rates[kGroupGrid] = (textures ? lr.grid.final : lr.grid.At(step)) * lr_scale_;
+      r.learning_rates[kGroupMlp] = (textures ? lr.mlp.final : lr.mlp.At(step)) * lr_scale_;
+    }
+    if (textures) r.learning_rates[kGroupTexels] = lr.texels * lr_scale_;
+    // SH degree grows by one every interval of stage-1 steps (it persists into stage 2).
+    const int64_t sh_steps = phase == Phase::kCoarse ? step : s1.coarse_iterations + step;
+    r.active_sh_degree = textures ? s1.sh_degree
+                                  : static_cast<int>(std::min<int64_t>(
+                                        s1.sh_degree, sh_steps / std::max(1, s1.sh_increase_interval)));
+    r.apply_deformation = phase != Phase::kCoarse;
+    r.use_textures = textures;
+    r.lambda_dssim = textures ? config_.stage2.lambda_dssim : s1.lambda_dssim;
+    if (phase == Phase::kFine || textures) {
+      r.plane_tv = s1.regularizer.plane_tv;
+      r.time_smoothness = s1.regularizer.time_smoothness;
+      r.time_l1 = s1.regularizer.time_l1;
+    }
+    r.accumulate_densify_stats = !textures && s1.densify.enabled && step < s1.densify.until_step;
+    r.accumulate_texture_stats = textures && config_.stage2.textures == TextureMode::kAdaptive;
+    r.time_bins = config_.stage2.time_bins;
+    r.time_min = data_.time_min();
+    r.time_max = data_.time_max();
+    r.background = config_.background;
+    r.near_plane = config_.near_plane;
+    return r;
+  }
+
+  Status RunPhase(Phase phase, int first_step) {
+    const int total = Iterations(phase);
+    const int batch = phase == Phase::kTextures ? config_.stage2.batch_size : config_.stage1.batch_size;
+    if (batch < 1 || batch % options_.world_size != 0) {
+      return MakeError(StatusCode::kInvalidArgument, "batch size ", batch, " is not a positive multiple of ",
+                       options_.world_size, " ranks");
+    }
+    const auto start = Clock::now();
+    const auto& train = data_.train_views();
+    const int importance_from = total - std::max<int>(1, static_cast<int>(train.size()) / batch + 1);
+    ModelState snapshot;
+    bool have_snapshot = false;
+    int rollbacks = 0;
+    double loss_sum = 0, psnr_sum = 0;
+    int logged = 0;
+    size_t gaussians = 0;
+    {
+      Gaussians g;
+      ATEX_RETURN_IF_ERROR(backend_.ReadGaussians(&g));
+      gaussians = g.size();
+    }
+    if (phase != Phase::kTextures) ATEX_RETURN_IF_ERROR(backend_.ResetStats(kStatsDensify));
+    // Importance is measured over the phase's last epoch only (the final model's view coverage).
+    ATEX_RETURN_IF_ERROR(backend_.ResetStats(kStatsImportance));
+    if (phase == Phase::kTextures && texel_budget_ == 0) {
+      texel_budget_ = static_cast<uint64_t>(
+          std::llround(config_.stage2.texel_budget_fraction * 16.0 * static_cast<double>(gaussians)));
+    }
+
+    for (int step = first_step; step < total; ++step) {
+      // Keep a known-good state to return to if the numbers blow up.
+      if (step % kSnapshotInterval == 0) {
+        ATEX_RETURN_IF_ERROR(backend_.Save(&snapshot));
+        have_snapshot = true;
+      }
+      StepRequest request = MakeRequest(phase, step);
+      request.accumulate_importance = step >= importance_from;
+      const std::vector<size_t> picks =
+          schedule_.Views(total_steps_, batch, options_.rank, options_.world_size);
+      std::vector<std::shared_ptr<const Image>> images;
+      std::vector<TrainView> views;
+      for (size_t index : picks) {
+        const View& v = train[index];
+        ATEX_ASSIGN_OR_RETURN(auto image, data_.LoadImage(v));
+        images.push_back(image);
+        views.push_back({&v.camera, images.back().get(), static_cast<uint64_t>(index) + 1});
+      }
+      ATEX_ASSIGN_OR_RETURN(StepResult result, backend_.Step(request, views));
+      if (!result.finite) {
+        if (!have_snapshot || ++rollbacks > kMaxRollbacks) {
+          return MakeError(StatusCode::kNumericalError, PhaseName(phase), " step ", step,
+                           ": non-finite loss or gradients and no recovery left (", rollbacks - 1, " rollbacks)");
+        }
+        lr_scale_ *= 0.5;
+        ATEX_RETURN_IF_ERROR(backend_.Load(snapshot));
+        Event(StrCat(PhaseName(phase), " step ", step, ": NaN/Inf detected; rolled back to the last snapshot and "
+                     "halved the learning rates (scale ", lr_scale_, ")"));
+        step = (step / kSnapshotInterval) * kSnapshotInterval - 1;  // redo from the snapshot
+        continue;
+      }
+      ++total_steps_;
+      loss_sum += result.loss;
+      for (double p : result.view_psnr) psnr_sum += p / result.view_psnr.size();
+      ++logged;
+
+      ATEX_RETURN_IF_ERROR(AfterStep(phase, step, &gaussians));
+      const bool last = step + 1 == total;
+      if ((step + 1) % std::max(1, options_.log_every) == 0 || last) {
+        TrainProgress progress{PhaseName(phase), step + 1, total, loss_sum / logged, psnr_sum / logged, gaussians, ""};
+        if (csv_) {
+          csv_ << progress.phase << ',' << progress.step << ',' << progress.loss << ',' << progress.psnr << ','
+               << gaussians << ',' << request.learning_rates[kGroupPositions] << ',' << Seconds(start) << '\n';
+        }
+        loss_sum = psnr_sum = 0;
+        logged = 0;
+        if (!Report(progress)) return Cancelled(phase, step + 1);
+      }
+      if (config_.checkpoint_every > 0 && !options_.checkpoint_dir.empty() &&
+          (step + 1) % config_.checkpoint_every == 0 && !last) {
+        ATEX_RETURN_IF_ERROR(SaveCheckpoint(phase, step + 1));
+      }
+      if (config_.eval_every > 0 && (step + 1) % config_.eval_every == 0 && !last && !data_.test_views().empty()) {
+        ATEX_ASSIGN_OR_RETURN(EvalResult eval, Evaluate(data_, backend_, data_.test_views(), EvalRequest(phase)));
+        Event(StrCat(PhaseName(phase), " step ", step + 1, ": test PSNR ", eval.mean.psnr, " SSIM ", eval.mean.ssim));
+      }
+    }
+    const double seconds = Seconds(start);
+    if (phase == Phase::kCoarse) summary_.coarse_seconds += seconds, summary_.coarse_steps += total - first_step;
+    if (phase == Phase::kFine) summary_.fine_seconds += seconds, summary_.fine_steps += total - first_step;
+    if (phase == Phase::kTextures) summary_.textures_seconds += seconds, summary_.texture_steps += total - first_step;
+    return Status::Ok();
+  }
+
+  // Densification (stage 1) and texture growth (stage 2) after step `step` (0-based).
+  Status AfterStep(Phase phase, int step, size_t* gaussians) {
+    const int done = step + 1;
+    if (phase == Phase::kTextures) {
+      const auto& steps = config_.stage2.growth_steps;
+      if (config_.stage2.textures != TextureMode::kAdaptive ||
+          std::find(steps.begin(), steps.end(), done) == steps.end()) {
+        return Status::Ok();
+      }
+      TrainingStats stats;
+      ATEX_RETURN_IF_ERROR(backend_.ReadStats(kStatsTexture, &stats));
+      ModelState layout;
+      ATEX_RETURN_IF_ERROR(backend_.Save(&layout));
+      const GrowthEvidence evidence = ComputeGrowthEvidence(stats.texture, config_.stage2.ablations);
+      GrowthReport report;
+      ATEX_ASSIGN_OR_RETURN(TextureResize resize,
+                            PlanTextureGrowth(*layout.textures, evidence, config_.stage2, texel_budget_, &report));
+      ATEX_RETURN_IF_ERROR(backend_.ResizeTextures(resize));
+      ATEX_RETURN_IF_ERROR(backend_.ResetStats(kStatsTexture));
+      summary_.growths.push_back(report);
+      Event(StrCat("growth at step ", done, ": ", report.grown, " of ", report.candidates, " candidates grew (u ",
+                   report.grown_u_only, ", v ", report.grown_v_only, ", both ", report.grown_both, "), texels ",
+                   report.texels_before, " -> ", report.texels_after, " (budget ", report.texel_budget, ", ",
+                   report.rejected_budget, " refused)"));
+      return Status::Ok();
+    }
+    const DensifyConfig& d = config_.stage1.densify;
+    if (!d.enabled || done <= d.from_step || done >= d.until_step || done % d.interval != 0) return Status::Ok();
+    TrainingStats stats;
+    ATEX_RETURN_IF_ERROR(backend_.ReadStats(kStatsDensify, &stats));
+    Gaussians canonical;
+    ATEX_RETURN_IF_ERROR(backend_.ReadGaussians(&canonical));
+    const bool after_reset = d.opacity_reset_interval > 0 && done > d.opacity_reset_interval;
+    DensifyReport report;
+    ATEX_ASSIGN_OR_RETURN(GaussianEdit edit, PlanDensification(canonical, stats.densify, d, extent_, after_reset,
+                                                               config_.seed + total_steps_, &report));
+    if (d.opacity_reset_interval > 0 && done % d.opacity_reset_interval == 0) {
+      edit.cap_opacity_logit = std::log(0.01f / 0.99f);  // 3DGS: opacity capped at 0.01
+    }
+    ATEX_RETURN_IF_ERROR(backend_.ApplyEdit(edit));
+    summary_.densifications.push_back(report);
+    *gaussians = report.after;
+    return Status::Ok();
+  }
+
+  RenderRequest EvalRequest(Phase phase) const {
+    RenderRequest r;
+    r.active_sh_degree = config_.stage1.sh_degree;
+    r.apply_deformation = phase != Phase::kCoarse;
+    r.use_textures = phase == Phase::kTextures;
+    r.background = config_.background;
+    r.near_plane = config_.near_plane;
+    return r;
+  }
+
+  Status SaveCheckpoint(Phase phase, int step) {
+    ModelState state;
+    ATEX_RETURN_IF_ERROR(backend_.Save(&state));
+    nlohmann::json trainer = {{"phase", PhaseName(phase)}, {"step", step},          {"lr_scale", lr_scale_},
+                              {"total_steps", total_steps_}, {"config", ConfigToJson(config_)}};
+    return WriteCheckpoint(options_.checkpoint_dir, state, metadata_, trainer);
+  }
+
+  Status Cancelled(Phase phase, int step) {
+    if (!options_.checkpoint_dir.empty()) ATEX_RETURN_IF_ERROR(SaveCheckpoint(phase, step));
+    return MakeError(StatusCode::kCancelled, "training stopped at ", PhaseName(phase), " step ", step,
+                     options_.checkpoint_dir.empty() ? "" : " (checkpoint written)");
+  }
+
+  bool Report(const TrainProgress& p) { return options_.progress ? options_.progress(p) : true; }
+
+  void Event(const std::string& text) {
+    summary_.events.push_back(text);
+    TrainProgress p;
+    p.event = text;
+    Report(p);
+  }
+
+  StatusOr<TrainSummary> Finish() {
+    ModelState state;
+    ATEX_RETURN_IF_ERROR(backend_.Save(&state));
+    const bool textured = state.textures.has_value();
+    metadata_.texture_mode = textured ? std::string(TextureModeName(config_.stage2.textures)) : "none";
+    metadata_.background = config_.background;
+    metadata_.extra["trainer"] = {{"name", "atex train"},
+                                  {"backend", backend_.name()},
+                                  {"dataset", data_.name()},
+                                  {"seed", config_.seed},
+                                  {"config", ConfigToJson(config_)}};
+    // Bounds of the final canonical positions.
+    if (state.gaussians.size() > 0) {
+      metadata_.bounds_min = {1e30f, 1e30f, 1e30f};
+      metadata_.bounds_max = {-1e30f, -1e30f, -1e30f};
+      for (size_t i = 0; i < state.gaussians.size(); ++i) {
+        for (int k = 0; k < 3; ++k) {
+          metadata_.bounds_min[k] = std::min(metadata_.bounds_min[k], state.gaussians.positions[3 * i + k]);
+          metadata_.bounds_max[k] = std::max(metadata_.bounds_max[k], state.gaussians.positions[3 * i + k]);
+        }
+      }
+    }
+    summary_.asset = AssetFromState(state, metadata_);
+    // Statistics for the fitter: importance of the last epoch and the texture evidence since the last growth.
+    TrainingStats stats;
+    ATEX_RETURN_IF_ERROR(backend_.ReadStats(kStatsImportance | (textured ? kStatsTexture : 0), &stats));
+    GaussianStats gs;
+    gs.importance = stats.importance;
+    gs.importance.resize(state.gaussians.size(), 0.0f);
+    if (textured && stats.texture.bins > 0 && stats.texture.demand_sum.size() == state.gaussians.size() * stats.texture.bins) {
+      const GrowthEvidence e = ComputeGrowthEvidence(stats.texture, config_.stage2.ablations);
+      gs.texture_demand = e.score;
+      gs.peak_scale_u = e.scale_u;
+      gs.peak_scale_v = e.scale_v;
+    } else {
+      gs.texture_demand.assign(state.gaussians.size(), 0.0f);
+      gs.peak_scale_u.assign(state.gaussians.size(), 0.0f);
+      gs.peak_scale_v.assign(state.gaussians.size(), 0.0f);
+    }
+    summary_.asset.stats = std::move(gs);
+    if (!data_.test_views().empty()) {
+      const Phase last = textured ? Phase::kTextures : Phase::kFine;
+      ATEX_ASSIGN_OR_RETURN(summary_.test, Evaluate(data_, backend_, data_.test_views(), EvalRequest(last)));
+    }
+    summary_.peak_memory_bytes = backend_.PeakMemoryBytes();
+    return std::move(summary_);
+  }
+
+  static constexpr int kSnapshotInterval = 200;
+  static constexpr int kMaxRollbacks = 5;
+
+  const Dataset& data_;
+  Backend& backend_;
+  const TrainerOptions& options_;
+  TrainConfig config_;
+  CameraSchedule schedule_;
+  std::ofstream csv_;
+  Metadata metadata_;
+  TrainSummary summary_;
+  double extent_ = 1.0;
+  double lr_scale_ = 1.0;
+  int64_t total_steps_ = 0;  // steps over all phases: drives the camera schedule
+  uint64_t texel_budget_ = 0;
+};
+
+}  // namespace
+
+StatusOr<TrainSummary> Train(const Dataset& dataset, Backend& backend, const TrainerOptions& options,
+                             const Asset* initial) {
+  Loop loop(dataset, backend, options);
+  return loop.Run(initial);
+}
+
+}  // namespace atex::train

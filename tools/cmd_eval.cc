@@ -1,0 +1,79 @@
+// `atex eval`: PSNR / SSIM / DSSIM of an asset on a dataset's test views.
+#include <cstdio>
+#include <iostream>
+
+#include "asset_view.h"
+#include "atex/dataset.h"
+#include "atex/train/trainer.h"
+#include "backend_select.h"
+#include "cli.h"
+
+namespace {
+
+struct EvalArgs {
+  std::string asset, data, backend = "auto", kind = "auto", split = "test";
+  int timesteps = 0, downscale = 1;
+  bool json = false;
+};
+
+int RunEval(const EvalArgs& a) {
+  using namespace atex;
+  const char* cmd = "eval";
+  DatasetOptions dopts;
+  auto kind = ParseDatasetKind(a.kind);
+  if (!kind.ok()) return cli::Fail(cmd, kind.status());
+  dopts.kind = *kind;
+  dopts.max_timesteps = a.timesteps;
+  dopts.downscale = a.downscale;
+  auto dataset = OpenDataset(a.data, dopts);
+  if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
+  auto backend = cli::SelectBackend(a.backend);
+  if (!backend.ok()) return cli::Fail(cmd, backend.status());
+  if (!backend->note.empty()) std::cerr << "atex eval: " << backend->note << "\n";
+  Asset asset;
+  train::RenderRequest request;
+  if (Status s = cli::LoadAssetIntoBackend(a.asset, backend->backend.get(), &asset, &request); !s.ok()) {
+    return cli::Fail(cmd, s);
+  }
+  if (a.split != "test" && a.split != "train") {
+    std::cerr << "atex eval: --split must be test or train\n";
+    return cli::kExitUsage;
+  }
+  const auto& views = a.split == "test" ? (*dataset)->test_views() : (*dataset)->train_views();
+  auto eval = train::Evaluate(**dataset, *backend->backend, views, request);
+  if (!eval.ok()) return cli::Fail(cmd, eval.status());
+  if (a.json) {
+    nlohmann::json j = train::EvalToJson(*eval);
+    j["asset"] = a.asset;
+    j["split"] = a.split;
+    j["backend"] = backend->description;
+    cli::PrintJson(j);
+  } else {
+    for (const auto& c : train::EvalToJson(*eval)["cameras"]) {
+      std::printf("camera %3d (%2d views): PSNR %.3f  SSIM %.4f  DSSIM1 %.4f  DSSIM2 %.4f\n", c["camera"].get<int>(),
+                  c["views"].get<int>(), c["psnr"].get<double>(), c["ssim"].get<double>(), c["dssim1"].get<double>(),
+                  c["dssim2"].get<double>());
+    }
+    const auto& m = eval->mean;
+    std::printf("mean over %zu %s views: PSNR %.3f dB  SSIM %.4f  DSSIM1 %.4f  DSSIM2 %.4f\n", eval->views.size(),
+                a.split.c_str(), m.psnr, m.ssim, m.dssim1, m.dssim2);
+  }
+  return cli::kExitOk;
+}
+
+atex::cli::Runner SetupEval(CLI::App& app) {
+  auto a = std::make_shared<EvalArgs>();
+  app.add_option("asset", a->asset, "The .atex to evaluate")->required();
+  app.add_option("--data", a->data, "Dataset folder or .npz")->required();
+  app.add_option("--split", a->split, "test or train")->capture_default_str();
+  app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
+  app.add_option("--dataset-kind", a->kind, "auto, panoptic, dnerf, dnerf-npz, n3dv")->capture_default_str();
+  app.add_option("--timesteps", a->timesteps, "Use only the first N timesteps (0 = all present)");
+  app.add_option("--downscale", a->downscale, "Integer image downscale factor")->capture_default_str();
+  app.add_flag("--json", a->json, "Machine-readable output");
+  return [a]() { return RunEval(*a); };
+}
+
+ATEX_REGISTER_COMMAND("eval", "Evaluate an asset on a dataset's test views (PSNR, SSIM, DSSIM)", SetupEval);
+
+}  // namespace

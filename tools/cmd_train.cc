@@ -1,0 +1,179 @@
+// `atex train`: stage 1 (4DGS) and/or stage 2 (AdaTex4D textures) on a dataset.
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+
+#include "atex/container.h"
+#include "atex/dataset.h"
+#include "atex/file_io.h"
+#include "atex/train/trainer.h"
+#include "backend_select.h"
+#include "cli.h"
+
+namespace {
+
+struct TrainArgs {
+  std::string data, out, config_file, stage = "all", textures, backend = "auto", init, checkpoint_dir, resume,
+      metrics, kind = "auto";
+  std::vector<std::string> overrides;
+  int timesteps = 0, downscale = 1, checkpoint_every = -1;
+  long long seed = -1;
+  bool json = false, print_config = false;
+};
+
+atex::StatusOr<atex::train::TrainConfig> BuildConfig(const TrainArgs& a, const atex::Dataset* data) {
+  using namespace atex;
+  std::string kind = a.kind == "dnerf-npz" ? "dnerf" : a.kind;  // --print-config without a dataset
+  if (data) {
+    switch (data->kind()) {
+      case DatasetKind::kPanoptic: kind = "panoptic"; break;
+      case DatasetKind::kDNerf:
+      case DatasetKind::kDNerfNpz: kind = "dnerf"; break;
+      case DatasetKind::kN3dv: kind = "n3dv"; break;
+      default: break;
+    }
+  }
+  train::TrainConfig config = train::DefaultConfig(kind);
+  if (data) config.background = data->background();
+  if (!a.config_file.empty()) {
+    ATEX_ASSIGN_OR_RETURN(auto bytes, ReadFileBytes(a.config_file, 16 << 20));
+    const auto json = nlohmann::json::parse(bytes.begin(), bytes.end(), nullptr, false);
+    if (json.is_discarded()) return MakeError(StatusCode::kInvalidArgument, a.config_file, ": not valid JSON");
+    ATEX_ASSIGN_OR_RETURN(config, train::ConfigFromJson(json, config));
+  }
+  for (const auto& o : a.overrides) {
+    ATEX_ASSIGN_OR_RETURN(config, train::ApplyOverride(config, o));
+  }
+  if (!a.textures.empty()) {
+    ATEX_ASSIGN_OR_RETURN(config.stage2.textures, ParseTextureMode(a.textures));
+  }
+  if (a.seed >= 0) config.seed = static_cast<uint64_t>(a.seed);
+  if (a.checkpoint_every >= 0) config.checkpoint_every = a.checkpoint_every;
+  return config;
+}
+
+int RunTrain(const TrainArgs& a) {
+  using namespace atex;
+  const char* cmd = "train";
+  if (a.print_config) {
+    auto config = BuildConfig(a, nullptr);
+    if (!config.ok()) return cli::Fail(cmd, config.status());
+    cli::PrintJson(train::ConfigToJson(*config));
+    return cli::kExitOk;
+  }
+  if (a.data.empty() || a.out.empty()) {
+    std::cerr << "atex train: --data and --out are required (see --help)\n";
+    return cli::kExitUsage;
+  }
+  DatasetOptions dopts;
+  auto kind = ParseDatasetKind(a.kind);
+  if (!kind.ok()) return cli::Fail(cmd, kind.status());
+  dopts.kind = *kind;
+  dopts.max_timesteps = a.timesteps;
+  dopts.downscale = a.downscale;
+  auto dataset = OpenDataset(a.data, dopts);
+  if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
+  for (const auto& w : (*dataset)->warnings()) std::cerr << "atex train: note: " << w << "\n";
+  auto config = BuildConfig(a, dataset->get());
+  if (!config.ok()) return cli::Fail(cmd, config.status());
+
+  train::TrainerOptions options;
+  options.config = *config;
+  if (a.stage == "1") {
+    options.stages = train::kStage1;
+  } else if (a.stage == "2") {
+    options.stages = train::kStage2;
+  } else if (a.stage == "all") {
+    options.stages = train::kBothStages;
+  } else {
+    std::cerr << "atex train: --stage must be 1, 2 or all\n";
+    return cli::kExitUsage;
+  }
+  options.checkpoint_dir = a.checkpoint_dir;
+  options.resume_dir = a.resume;
+  options.metrics_csv = a.metrics;
+
+  Asset initial;
+  if (!a.init.empty()) {
+    auto asset = ReadAssetFile(a.init);
+    if (!asset.ok()) return cli::Fail(cmd, asset.status().WithContext(a.init));
+    initial = std::move(*asset);
+  }
+  auto backend = cli::SelectBackend(a.backend);
+  if (!backend.ok()) return cli::Fail(cmd, backend.status());
+  if (!backend->note.empty()) std::cerr << "atex train: " << backend->note << "\n";
+  std::cerr << "atex train: " << (*dataset)->name() << ", " << (*dataset)->train_views().size() << " training and "
+            << (*dataset)->test_views().size() << " test views; backend " << backend->description << "\n";
+
+  std::unique_ptr<cli::Progress> bar;
+  std::string bar_phase;
+  options.progress = [&](const train::TrainProgress& p) {
+    if (!p.event.empty()) {
+      std::cerr << (bar && bar->tty() ? "\n" : "") << "atex train: " << p.event << "\n";
+      return true;
+    }
+    if (p.phase != bar_phase) {
+      if (bar) bar->Finish();  // the previous phase's last update already drew its final state
+      bar = std::make_unique<cli::Progress>(p.phase, p.total);
+      bar_phase = p.phase;
+    }
+    char detail[160];
+    std::snprintf(detail, sizeof detail, "loss %.4f PSNR %.2f  %zu Gaussians", p.loss, p.psnr, p.gaussians);
+    bar->Update(p.step, detail);
+    return true;
+  };
+  auto summary = train::Train(**dataset, *backend->backend, options, a.init.empty() ? nullptr : &initial);
+  if (bar) bar->Finish();
+  if (!summary.ok()) return cli::Fail(cmd, summary.status());
+
+  WriteOptions write;
+  const Status written = WriteAssetFile(a.out, summary->asset, write);
+  if (!written.ok()) return cli::Fail(cmd, written.WithContext(a.out));
+  nlohmann::json report = train::SummaryToJson(*summary);
+  report["output"] = a.out;
+  report["backend"] = backend->description;
+  if (auto bytes = ReadFileBytes(a.out); bytes.ok()) report["model_bytes"] = bytes->size();
+  if (a.json) {
+    cli::PrintJson(report);
+  } else {
+    std::printf("wrote %s: %zu Gaussians, %.2f MiB\n", a.out.c_str(), summary->asset.gaussians.size(),
+                report.value("model_bytes", 0.0) / (1024.0 * 1024.0));
+    std::printf("time: coarse %.1f s, fine %.1f s, textures %.1f s; peak device memory %.2f GiB\n",
+                summary->coarse_seconds, summary->fine_seconds, summary->textures_seconds,
+                summary->peak_memory_bytes / double(1ull << 30));
+    if (!summary->test.views.empty()) {
+      const auto& m = summary->test.mean;
+      std::printf("test views: PSNR %.3f dB  SSIM %.4f  DSSIM1 %.4f  DSSIM2 %.4f\n", m.psnr, m.ssim, m.dssim1,
+                  m.dssim2);
+    }
+  }
+  return cli::kExitOk;
+}
+
+atex::cli::Runner SetupTrain(CLI::App& app) {
+  auto a = std::make_shared<TrainArgs>();
+  app.add_option("--data", a->data, "Dataset folder (Panoptic, D-NeRF, N3DV) or the tiny-lego .npz");
+  app.add_option("--out,-o", a->out, "Output .atex");
+  app.add_option("--config", a->config_file, "JSON training config (see configs/; --print-config shows the defaults)");
+  app.add_option("--set", a->overrides, "Override one config value, e.g. --set stage1.batch_size=2 (repeatable)");
+  app.add_option("--stage", a->stage, "1 (4DGS), 2 (textures on --init), or all")->capture_default_str();
+  app.add_option("--textures", a->textures, "Stage-2 texture mode: adaptive, uniform or none");
+  app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
+  app.add_option("--init", a->init, "Stage-1 asset to start stage 2 from");
+  app.add_option("--checkpoint-dir", a->checkpoint_dir, "Write periodic checkpoints here (atomically)");
+  app.add_option("--checkpoint-every", a->checkpoint_every, "Steps between checkpoints (overrides the config)");
+  app.add_option("--resume", a->resume, "Continue from a checkpoint folder");
+  app.add_option("--metrics", a->metrics, "Write a metrics CSV (one row per logged step)");
+  app.add_option("--dataset-kind", a->kind, "auto, panoptic, dnerf, dnerf-npz, n3dv")->capture_default_str();
+  app.add_option("--timesteps", a->timesteps, "Use only the first N timesteps (0 = all present)");
+  app.add_option("--downscale", a->downscale, "Integer image downscale factor")->capture_default_str();
+  app.add_option("--seed", a->seed, "Random seed (default: the config's, 6666)");
+  app.add_flag("--print-config", a->print_config, "Print the default config as JSON and exit");
+  app.add_flag("--json", a->json, "Machine-readable report on stdout");
+  return [a]() { return RunTrain(*a); };
+}
+
+ATEX_REGISTER_COMMAND("train", "Train a 4DGS model (stage 1) and AdaTex4D textures (stage 2) on a dataset",
+                      SetupTrain);
+
+}  // namespace
