@@ -44,7 +44,11 @@ case "$verb" in
   test)
     install_packages "${BUILD_PACKAGES[@]}" "${TEST_PACKAGES[@]}"
     configure_and_build
-    [ -x "$ROOT/tests/web/install.sh" ] && "$ROOT/tests/web/install.sh"
+    # Third-party checkers from npm (glTF-Validator, Babylon.js + playwright-core, an SPZ decoder), pinned by
+    # each folder's package-lock.json.
+    for installer in "$ROOT"/tests/*/install.sh; do
+      [ -x "$installer" ] && "$installer"
+    done
     export ATEX_REQUIRE_DATA=${ATEX_REQUIRE_DATA:-1}
     ctest --test-dir "$BUILD" --output-on-failure -j "$JOBS"
     # Hostile-input suite under AddressSanitizer + UBSan, and the libFuzzer targets, built with clang.

@@ -1,5 +1,5 @@
-// Intentionally small: format dispatch by extension lives in converters/src/dispatch
-// once formats exist. This file keeps the library non-empty.
+// Format dispatch by extension lives in converters/src/convert/convert.cc
+// (atex/converters/convert.h); this file keeps a stable anchor symbol.
 namespace atex::converters {
 int RegistryAnchor() { return 0; }
 }  // namespace atex::converters

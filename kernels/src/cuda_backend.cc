@@ -3,6 +3,7 @@
 // (one view's activations alive at a time), then one fused Adam update per group.
 #include "atex/cuda/cuda_backend.h"
 
+#include <algorithm>
 #include <cmath>
 #include <list>
 #include <unordered_map>
@@ -265,6 +266,27 @@ class CudaBackend final : public Backend {
     return result;
   }
 
+  Status ReadGradients(ModelState* out) override {
+    *out = ModelState{};
+    out->gaussians.sh_degree = sh_degree_;
+    ATEX_RETURN_IF_ERROR(positions_.grad.Download(&out->gaussians.positions, stream_));
+    ATEX_RETURN_IF_ERROR(rotations_.grad.Download(&out->gaussians.rotations, stream_));
+    ATEX_RETURN_IF_ERROR(log_scales_.grad.Download(&out->gaussians.log_scales, stream_));
+    ATEX_RETURN_IF_ERROR(opacity_.grad.Download(&out->gaussians.opacity_logits, stream_));
+    ATEX_RETURN_IF_ERROR(sh_.grad.Download(&out->gaussians.sh, stream_));
+    if (has_textures_) {
+      TexturePool pool = layout_;
+      ATEX_RETURN_IF_ERROR(texels_.grad.Download(&pool.texels, stream_));
+      out->textures = std::move(pool);
+    }
+    if (has_deformation_) {
+      DeformationField grad;
+      ATEX_RETURN_IF_ERROR(DownloadDeformation(grid_.grad.data(), mlp_.grad.data(), deform_layout_, &grad, stream_));
+      out->deformation = std::move(grad);
+    }
+    return Status::Ok();
+  }
+
   Status ReadStats(int kinds, train::TrainingStats* out) override {
     if (kinds & train::kStatsDensify) {
       ATEX_RETURN_IF_ERROR(grad_norm_sum_.Download(&out->densify.grad_norm_sum, stream_));
@@ -441,6 +463,48 @@ class CudaBackend final : public Backend {
   }
 
   uint64_t PeakMemoryBytes() const override { return peak_memory_; }
+
+  // See TimeRender in cuda_backend.h.
+  StatusOr<RenderTiming> Time(const Camera& camera, const train::RenderRequest& request, int repeats, int warmup) {
+    train::StepRequest step;
+    step.apply_deformation = request.apply_deformation && has_deformation_;
+    step.active_sh_degree = std::min(request.active_sh_degree, sh_degree_);
+    const bool textured = request.use_textures && has_textures_;
+    const detail::CameraModel<float> cam = detail::MakeCameraModel<float>(camera, request.near_plane);
+    ATEX_RETURN_IF_ERROR(image_.Resize(size_t(camera.width) * camera.height * 3));
+    auto render_once = [&]() -> Status {
+      RenderInputs inputs;
+      RenderGradients unused;
+      ATEX_RETURN_IF_ERROR(PrepareView(step, camera.time, textured, &inputs, &unused));
+      for (int k = 0; k < 3; ++k) inputs.background[k] = request.background[k];
+      return render_->Forward(cam, inputs, image_.data(), nullptr, nullptr);
+    };
+    for (int i = 0; i < warmup; ++i) ATEX_RETURN_IF_ERROR(render_once());
+    cudaEvent_t start, stop;
+    ATEX_CUDA_RETURN_IF_ERROR(cudaEventCreate(&start));
+    ATEX_CUDA_RETURN_IF_ERROR(cudaEventCreate(&stop));
+    std::vector<double> times;
+    Status status;
+    for (int i = 0; i < repeats && status.ok(); ++i) {
+      cudaEventRecord(start, stream_);
+      status = render_once();
+      cudaEventRecord(stop, stream_);
+      cudaEventSynchronize(stop);
+      float ms = 0;
+      cudaEventElapsedTime(&ms, start, stop);
+      times.push_back(ms);
+    }
+    cudaEventDestroy(start);
+    cudaEventDestroy(stop);
+    ATEX_RETURN_IF_ERROR(status);
+    std::sort(times.begin(), times.end());
+    RenderTiming t;
+    t.median_ms = times[times.size() / 2];
+    t.min_ms = times.front();
+    t.max_ms = times.back();
+    ATEX_ASSIGN_OR_RETURN(t.visible, render_->VisibleCount());
+    return t;
+  }
 
  private:
   static constexpr size_t kMaxBatch = 64;
@@ -700,6 +764,14 @@ class CudaBackend final : public Backend {
 };
 
 }  // namespace
+
+StatusOr<RenderTiming> TimeRender(train::Backend& backend, const Camera& camera, const train::RenderRequest& request,
+                                  int repeats, int warmup) {
+  auto* cuda = dynamic_cast<CudaBackend*>(&backend);
+  if (cuda == nullptr) return MakeError(StatusCode::kInvalidArgument, "TimeRender needs the CUDA backend");
+  if (repeats < 1 || warmup < 0) return MakeError(StatusCode::kInvalidArgument, "TimeRender: bad repeat counts");
+  return cuda->Time(camera, request, repeats, warmup);
+}
 
 StatusOr<std::unique_ptr<train::Backend>> MakeCudaBackend(const CudaBackendOptions& options) {
   std::string why;

@@ -1,4 +1,29 @@
-# Module 'data': sources appended to libatex; tests registered in atex_data_tests().
-list(APPEND ATEX_LIB_SOURCES)
+# Module 'data': images, zip/.npy/.npz, datasets, initialisation without a point cloud.
+list(APPEND ATEX_LIB_SOURCES
+  ${CMAKE_CURRENT_LIST_DIR}/zip_reader.cc
+  ${CMAKE_CURRENT_LIST_DIR}/zip_writer.cc
+  ${CMAKE_CURRENT_LIST_DIR}/npy.cc
+  ${CMAKE_CURRENT_LIST_DIR}/image_io.cc
+  ${CMAKE_CURRENT_LIST_DIR}/image_png.cc
+  ${CMAKE_CURRENT_LIST_DIR}/image_jpeg.cc
+  ${CMAKE_CURRENT_LIST_DIR}/image_exr.cc
+  ${CMAKE_CURRENT_LIST_DIR}/image_ops.cc
+  ${CMAKE_CURRENT_LIST_DIR}/image_cache.cc
+  ${CMAKE_CURRENT_LIST_DIR}/dataset.cc
+  ${CMAKE_CURRENT_LIST_DIR}/dataset_panoptic.cc
+  ${CMAKE_CURRENT_LIST_DIR}/dataset_dnerf.cc
+  ${CMAKE_CURRENT_LIST_DIR}/dataset_n3dv.cc
+  ${CMAKE_CURRENT_LIST_DIR}/knn.cc
+  ${CMAKE_CURRENT_LIST_DIR}/init.cc)
 function(atex_data_tests)
+  set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
+  atex_add_test(NAME data_io_test
+    SOURCES ${dir}/zip_test.cc ${dir}/npy_test.cc ${dir}/image_test.cc
+    LIBS atex PNG::PNG ZLIB::ZLIB
+    LABELS hostile
+    TIMEOUT 300)
+  atex_add_test(NAME data_dataset_test
+    SOURCES ${dir}/dataset_test.cc ${dir}/init_test.cc
+    LIBS atex
+    TIMEOUT 600)
 endfunction()

@@ -212,7 +212,22 @@ class CpuBackend final : public Backend {
     if (!result.finite) return result;
 
     ApplyAdam(request, grad, textured ? &grad_texels : nullptr, grad_field ? &*grad_field : nullptr);
+    last_grad_ = std::move(grad);
+    last_grad_texels_ = std::move(grad_texels);
+    last_grad_field_ = std::move(grad_field);
     return result;
+  }
+
+  Status ReadGradients(ModelState* out) override {
+    *out = ModelState{};
+    out->gaussians = last_grad_;
+    if (state_.textures) {
+      out->textures = *state_.textures;
+      out->textures->texels = last_grad_texels_;
+      out->textures->texels.resize(state_.textures->texels.size(), 0.0f);
+    }
+    out->deformation = last_grad_field_;
+    return Status::Ok();
   }
 
   Status ReadStats(int kinds, TrainingStats* stats) override {
@@ -442,6 +457,9 @@ class CpuBackend final : public Backend {
   AdamSettings adam_;
   ModelState state_;
   TrainingStats stats_;
+  Gaussians last_grad_;                           // gradients of the last Step (ReadGradients)
+  std::vector<float> last_grad_texels_;
+  std::optional<DeformationField> last_grad_field_;
   int bins_ = 8;
 };
 

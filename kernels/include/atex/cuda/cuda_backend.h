@@ -23,4 +23,14 @@ struct CudaBackendOptions {
 // Fails with kNoDevice (and a hint to use the CPU backend for tiny scenes) when no GPU is usable.
 StatusOr<std::unique_ptr<train::Backend>> MakeCudaBackend(const CudaBackendOptions& options = {});
 
+// Render timing on the device: deformation + projection + tile sort + rasterisation of
+// one frame, measured with CUDA events around `repeats` renders after `warmup` ones
+// (the image stays on the device). `backend` must come from MakeCudaBackend.
+struct RenderTiming {
+  double median_ms = 0, min_ms = 0, max_ms = 0;
+  int visible = 0;  // Gaussians with a positive radius in the frame
+};
+StatusOr<RenderTiming> TimeRender(train::Backend& backend, const Camera& camera, const train::RenderRequest& request,
+                                  int repeats = 100, int warmup = 10);
+
 }  // namespace atex::cuda

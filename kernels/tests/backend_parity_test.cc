@@ -1,0 +1,248 @@
+// The whole CUDA backend against the CPU backend: the same model (deformation field,
+// adaptive textures, SH 1), the same views and requests. The first step's gradients of
+// every parameter group must agree; later steps are compared by their losses only
+// loosely, because Adam with eps = 1e-15 turns any tiny gradient difference into a
+// full-size step (sign(g)·lr) and the trajectories drift apart by design. Statistics,
+// a densification edit, a texture growth and the final renders must agree. Skips
+// without a GPU.
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "atex/cuda/cuda_backend.h"
+#include "atex/deform.h"
+#include "atex/render.h"
+#include "atex/train/backend.h"
+#include "atex/train/texture_growth.h"
+#include "gpu_test_support.h"
+#include "render/render_test_util.h"
+
+namespace atex::cuda {
+namespace {
+
+using testing::RelativeError;
+
+struct Scene {
+  std::vector<Camera> cameras;  // one pose, four times
+  std::vector<Image> targets;
+  train::ModelState state;
+};
+
+Scene MakeScene(uint32_t seed) {
+  std::mt19937 rng(seed);
+  Scene s;
+  const Camera base = render_testing::RandomCamera(96, 72, rng);
+  render_testing::SceneOptions options;
+  options.count = 300;
+  options.sh_degree = 1;
+  options.extras = false;
+  options.textures = render_testing::TextureKind::kAdaptiveMixed;
+  Gaussians g = render_testing::RandomGaussians<float>(base, options, rng);
+  TexturePool pool = render_testing::RandomTextures<float>(g, options.textures, 0.5, rng);
+
+  DeformationConfig dc;
+  dc.grid.channels = 4;
+  dc.grid.base_resolution = {8, 8, 8, 4};
+  dc.grid.multires = {1, 2};
+  dc.mlp_width = 16;
+  dc.heads = {true, true, true, true, true};
+  dc.sh_coeffs = g.sh_coeffs();
+  for (int k = 0; k < 3; ++k) {
+    float lo = 1e30f, hi = -1e30f;
+    for (size_t i = 0; i < g.size(); ++i) {
+      lo = std::min(lo, g.positions[3 * i + k]);
+      hi = std::max(hi, g.positions[3 * i + k]);
+    }
+    dc.aabb_lo[k] = lo;
+    dc.aabb_hi[k] = hi;
+  }
+  auto field = InitDeformationField(dc, seed);
+  EXPECT_TRUE(field.ok());
+  // Make the residuals visible: scale up the heads' output layers.
+  for (auto& head : field->heads) {
+    for (float& w : head[1].weight) w *= 30.0f;
+  }
+  s.state.gaussians = g;
+  s.state.textures = pool;
+  s.state.deformation = *field;
+  train::ResetMoments(&s.state);
+
+  // Targets: the scene with shifted colours and positions, rendered by the reference.
+  Gaussians shifted = g;
+  std::normal_distribution<float> noise(0.0f, 0.05f);
+  for (float& v : shifted.sh) v += noise(rng);
+  for (float& v : shifted.positions) v += 0.2f * noise(rng);
+  for (int k = 0; k < 4; ++k) {
+    Camera c = base;
+    c.time = 0.25 * k;
+    Gaussians deformed;
+    EXPECT_TRUE(DeformForward(*field, shifted, c.time, &deformed, nullptr).ok());
+    RenderSettings settings;
+    auto out = RenderForward<float>(c, deformed, &pool, settings);
+    EXPECT_TRUE(out.ok());
+    s.cameras.push_back(c);
+    s.targets.push_back(RenderedImage(*out));
+  }
+  return s;
+}
+
+train::StepRequest Request() {
+  train::StepRequest r;
+  r.learning_rates = {1e-3, 1e-3, 5e-3, 5e-2, 2.5e-3, 1.25e-4, 2.5e-3, 1.6e-3, 1.6e-4};
+  r.active_sh_degree = 1;
+  r.apply_deformation = true;
+  r.use_textures = true;
+  r.plane_tv = 2e-4;
+  r.time_smoothness = 1e-3;
+  r.time_l1 = 1e-4;
+  r.accumulate_densify_stats = true;
+  r.accumulate_texture_stats = true;
+  r.accumulate_importance = true;
+  r.time_bins = 4;
+  return r;
+}
+
+TEST(BackendParity, StepsStatisticsEditsAndGrowthMatchTheCpuBackend) {
+  ATEX_REQUIRE_CUDA_DEVICE();
+  Scene scene = MakeScene(7);
+  auto gpu_or = MakeCudaBackend();
+  ASSERT_TRUE(gpu_or.ok()) << gpu_or.status().ToString();
+  std::unique_ptr<train::Backend> gpu = std::move(*gpu_or);
+  std::unique_ptr<train::Backend> cpu = train::MakeCpuBackend();
+  ATEX_ASSERT_OK(cpu->Load(scene.state));
+  ATEX_ASSERT_OK(gpu->Load(scene.state));
+
+  std::vector<train::TrainView> views;
+  for (size_t k = 0; k < scene.cameras.size(); ++k) {
+    views.push_back({&scene.cameras[k], &scene.targets[k], k + 1});
+  }
+  const train::StepRequest request = Request();
+  // Step 0: every gradient.
+  {
+    std::span<const train::TrainView> batch(views.data(), 2);
+    auto a = cpu->Step(request, batch);
+    auto b = gpu->Step(request, batch);
+    ASSERT_TRUE(a.ok()) << a.status().ToString();
+    ASSERT_TRUE(b.ok()) << b.status().ToString();
+    ASSERT_TRUE(a->finite && b->finite);
+    std::printf("[backend parity] step 0: loss cpu %.8f gpu %.8f\n", a->loss, b->loss);
+    EXPECT_LE(std::abs(a->loss - b->loss), 1e-5 * std::abs(a->loss));
+    train::ModelState ga, gb;
+    ATEX_ASSERT_OK(cpu->ReadGradients(&ga));
+    ATEX_ASSERT_OK(gpu->ReadGradients(&gb));
+    auto flatten = [](const DeformationField& f, bool planes) {
+      std::vector<float> out;
+      if (planes) {
+        for (const auto& scale : f.planes) {
+          for (const auto& p : scale) out.insert(out.end(), p.begin(), p.end());
+        }
+      } else {
+        for (const auto& l : f.trunk) {
+          out.insert(out.end(), l.weight.begin(), l.weight.end());
+          out.insert(out.end(), l.bias.begin(), l.bias.end());
+        }
+        for (const auto& head : f.heads) {
+          for (const auto& l : head) {
+            out.insert(out.end(), l.weight.begin(), l.weight.end());
+            out.insert(out.end(), l.bias.begin(), l.bias.end());
+          }
+        }
+      }
+      return out;
+    };
+    ASSERT_TRUE(ga.textures && gb.textures && ga.deformation && gb.deformation);
+    const std::vector<std::tuple<const char*, std::vector<float>, std::vector<float>>> groups = {
+        {"positions", gb.gaussians.positions, ga.gaussians.positions},
+        {"rotations", gb.gaussians.rotations, ga.gaussians.rotations},
+        {"log_scales", gb.gaussians.log_scales, ga.gaussians.log_scales},
+        {"opacity", gb.gaussians.opacity_logits, ga.gaussians.opacity_logits},
+        {"sh", gb.gaussians.sh, ga.gaussians.sh},
+        {"texels", gb.textures->texels, ga.textures->texels},
+        {"grid", flatten(*gb.deformation, true), flatten(*ga.deformation, true)},
+        {"mlp", flatten(*gb.deformation, false), flatten(*ga.deformation, false)},
+    };
+    std::printf("[backend parity] step-0 gradients (GPU vs CPU):");
+    for (const auto& [name, got, want] : groups) {
+      const double e = RelativeError(got, want);
+      std::printf(" %s %.2e", name, e);
+      EXPECT_LE(e, 1e-3) << name;
+    }
+    std::printf("\n");
+  }
+  for (int step = 1; step < 6; ++step) {
+    std::span<const train::TrainView> batch(views.data() + (step % 2) * 2, 2);
+    auto a = cpu->Step(request, batch);
+    auto b = gpu->Step(request, batch);
+    ASSERT_TRUE(a.ok()) << a.status().ToString();
+    ASSERT_TRUE(b.ok()) << b.status().ToString();
+    ASSERT_TRUE(a->finite && b->finite);
+    const double rel = std::abs(a->loss - b->loss) / std::abs(a->loss);
+    std::printf("[backend parity] step %d: loss cpu %.7f gpu %.7f (rel %.2e)\n", step, a->loss, b->loss, rel);
+    EXPECT_LE(rel, step <= 2 ? 1e-4 : 5e-2);  // drift after a few Adam steps, see the top of the file
+  }
+
+  train::TrainingStats sa, sb;
+  ATEX_ASSERT_OK(cpu->ReadStats(train::kStatsAll, &sa));
+  ATEX_ASSERT_OK(gpu->ReadStats(train::kStatsAll, &sb));
+  EXPECT_EQ(sa.densify.visible_count, sb.densify.visible_count);
+  EXPECT_EQ(sa.texture.visible_count, sb.texture.visible_count);
+  const double e_demand = RelativeError(sb.texture.demand_sum, sa.texture.demand_sum);
+  const double e_grad = RelativeError(sb.densify.grad_norm_sum, sa.densify.grad_norm_sum);
+  const double e_scale = RelativeError(sb.texture.scale_u_sum, sa.texture.scale_u_sum);
+  const double e_importance = RelativeError(sb.importance, sa.importance);
+  std::printf("[backend parity] stats: demand %.2e densify %.2e scale_u %.2e importance %.2e\n", e_demand, e_grad,
+              e_scale, e_importance);
+  // Statistics summed over six steps of slightly different trajectories.
+  EXPECT_LE(e_demand, 2e-2);
+  EXPECT_LE(e_grad, 2e-2);
+  EXPECT_LE(e_scale, 1e-3);
+  EXPECT_LE(e_importance, 1e-2);
+
+  // The same texture growth on both (planned from the CPU statistics), then the same edit.
+  train::ModelState before;
+  ATEX_ASSERT_OK(cpu->Save(&before));
+  const train::GrowthEvidence evidence = train::ComputeGrowthEvidence(sa.texture, {});
+  train::Stage2Config growth;
+  growth.growth_threshold = 0;
+  auto resize = train::PlanTextureGrowth(*before.textures, evidence, growth, 16 * before.gaussians.size(), nullptr);
+  ASSERT_TRUE(resize.ok());
+  ATEX_ASSERT_OK(cpu->ResizeTextures(*resize));
+  ATEX_ASSERT_OK(gpu->ResizeTextures(*resize));
+  train::GaussianEdit edit;
+  for (uint32_t i = 0; i < before.gaussians.size(); i += 2) edit.source.push_back(i);  // drop every other
+  edit.source.push_back(5);                                                            // and clone one
+  edit.reset_moments.assign(edit.source.size(), 0);
+  edit.reset_moments.back() = 1;
+  ATEX_ASSERT_OK(cpu->ApplyEdit(edit));
+  ATEX_ASSERT_OK(gpu->ApplyEdit(edit));
+
+  train::ModelState ca, cb;
+  ATEX_ASSERT_OK(cpu->Save(&ca));
+  ATEX_ASSERT_OK(gpu->Save(&cb));
+  ASSERT_EQ(ca.gaussians.size(), cb.gaussians.size());
+  ASSERT_TRUE(ca.textures && cb.textures);
+  EXPECT_EQ(ca.textures->heights, cb.textures->heights);
+  EXPECT_EQ(ca.textures->widths, cb.textures->widths);
+  const double e_texels = RelativeError(cb.textures->texels, ca.textures->texels);
+  const double e_positions = RelativeError(cb.gaussians.positions, ca.gaussians.positions);
+  const double e_m = RelativeError(cb.m_texels, ca.m_texels);
+  std::printf("[backend parity] after growth + edit: texels %.2e positions %.2e texel moments %.2e\n", e_texels,
+              e_positions, e_m);
+  EXPECT_LE(e_texels, 1e-2);
+  EXPECT_LE(e_positions, 1e-3);
+  EXPECT_LE(e_m, 5e-2);
+
+  train::RenderRequest render;
+  render.active_sh_degree = 1;
+  auto ia = cpu->Render(scene.cameras[1], render);
+  auto ib = gpu->Render(scene.cameras[1], render);
+  ASSERT_TRUE(ia.ok() && ib.ok());
+  const double e_image = RelativeError(ib->pixels, ia->pixels);
+  std::printf("[backend parity] final render: %.2e\n", e_image);
+  EXPECT_LE(e_image, 1e-2);
+}
+
+}  // namespace
+}  // namespace atex::cuda

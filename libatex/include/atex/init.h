@@ -1,0 +1,92 @@
+// Initial Gaussians for a dataset that has no point cloud.
+//
+// Methods (InitMethod):
+//   kVisualHull   Carve a voxel grid with the foreground masks of the training
+//                 cameras at the first timestep: a voxel is kept when it projects
+//                 into at least `min_views` images and lies inside the mask in at
+//                 least `hull_keep_fraction` of them. The carving box comes from
+//                 the cameras (the point nearest to all optical axes ± the median
+//                 camera distance), refined by a coarse pass to the kept voxels'
+//                 bounds. Points are sampled uniformly in kept voxels and re-tested
+//                 with the same rule.
+//   kViewVolume   Random points in the volume the cameras see: a random training
+//                 camera, a random pixel and a random depth (uniform in disparity
+//                 between 0.1·D and 2.5·D, D = the median camera distance to the
+//                 scene centre, or the dataset's depth bounds when it has them),
+//                 kept when at least `min_views` cameras see it. With masks, points
+//                 that pass the hull rule are rejected (they are foreground) and
+//                 colours come from pixels outside the masks (background).
+//   kHullAndViewVolume  Both (the default for multi-view datasets with masks,
+//                 e.g. Panoptic: people from the hull, the studio from the volume).
+//   kRandomCube   Uniform points in [−h, h]³ (h = cube_half_extent, 1.3 for the
+//                 D-NeRF synthetic scenes as 4DGaussians uses) with uniformly
+//                 random colours: the default for monocular datasets (D-NeRF,
+//                 the lego .npz), whose single moving camera cannot carve a hull.
+//   kAuto         kHullAndViewVolume if the dataset is multi-view with masks,
+//                 kViewVolume if multi-view without masks (N3DV), else kRandomCube.
+//
+// Every Gaussian gets: colour = the mean of the pixels it projects to in the
+// first-timestep training images (hull and volume points; random for the cube),
+// SH DC = (colour − 0.5)/C0 with higher coefficients zero; log-scale = log of
+// the RMS distance to its 3 nearest neighbours (3DGS; squared distances clamped
+// below at 1e-7), the same on all three axes; rotation identity (1, 0, 0, 0);
+// opacity logit(initial_opacity). The result is a deterministic function of the
+// dataset and the options (seed).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "atex/dataset.h"
+#include "atex/model.h"
+#include "atex/status.h"
+
+namespace atex {
+
+enum class InitMethod { kAuto, kVisualHull, kViewVolume, kHullAndViewVolume, kRandomCube };
+
+// "auto", "hull", "volume", "hull+volume", "cube".
+const char* InitMethodName(InitMethod method);
+StatusOr<InitMethod> ParseInitMethod(const std::string& name);
+
+struct InitOptions {
+  InitMethod method = InitMethod::kAuto;
+  uint64_t seed = 6666;
+  int sh_degree = 3;                // of the returned Gaussians (0..3)
+  int min_views = 3;                // cameras that must see a hull voxel / volume point
+  // Visual hull.
+  int hull_resolution = 128;        // voxels along the longest side of the refined box
+  double hull_keep_fraction = 0.9;  // of the cameras that see a voxel, inside their masks
+  int hull_points = 60000;
+  // View volume.
+  int volume_points = 30000;
+  // Random cube.
+  float cube_half_extent = 1.3f;
+  int cube_points = 100000;
+  float initial_opacity = 0.1f;     // in (0, 1)
+  int knn_neighbors = 3;            // for the initial scales (1..16)
+};
+
+// What InitializeGaussians did (for logs and tests).
+struct InitReport {
+  InitMethod method = InitMethod::kAuto;  // the method actually used
+  int cameras = 0;                        // training views of the first timestep used
+  size_t hull_voxels = 0;                 // kept voxels of the refined grid
+  std::array<float, 3> hull_box_min{0, 0, 0}, hull_box_max{0, 0, 0};
+  size_t hull_points = 0, volume_points = 0, cube_points = 0;
+  std::array<double, 3> scene_center{0, 0, 0};  // nearest point to the optical axes (multi-view)
+  double camera_distance = 0;                    // median camera distance to scene_center
+};
+
+StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOptions& options = {},
+                                        InitReport* report = nullptr);
+
+// log(sqrt(mean squared distance to the k nearest other points)) per point,
+// through a k-d tree (O(N log N)); squared distances are clamped below at 1e-7.
+// positions: [N][3]; returns [N]. With fewer than k+1 points the available
+// neighbours are used; a lone point gets the clamp value, log(sqrt(1e-7)).
+std::vector<float> NearestNeighborLogScales(const std::vector<float>& positions, int k = 3);
+
+}  // namespace atex

@@ -1,0 +1,482 @@
+// Datasets: the real Panoptic and lego data, synthetic D-NeRF and N3DV folders
+// written here (with poses whose OpenCV form is known independently), the
+// bounded image cache, and malformed inputs.
+#include <cmath>
+#include <atomic>
+#include <fstream>
+#include <set>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "atex/dataset.h"
+#include "atex/npy.h"
+#include "core/test_support.h"
+
+namespace atex {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Projects a world point with a camera: (u, v, depth).
+std::array<double, 3> ProjectPoint(const Camera& c, double x, double y, double z) {
+  const auto& m = c.world_to_camera;
+  const double px = m[0] * x + m[1] * y + m[2] * z + m[3];
+  const double py = m[4] * x + m[5] * y + m[6] * z + m[7];
+  const double pz = m[8] * x + m[9] * y + m[10] * z + m[11];
+  return {c.fx * px / pz + c.cx, c.fy * py / pz + c.cy, pz};
+}
+
+void WriteText(const fs::path& path, const std::string& text) {
+  fs::create_directories(path.parent_path());
+  std::ofstream(path) << text;
+}
+
+// --- Panoptic (real data) --------------------------------------------------------
+TEST(Panoptic, OpensTheRealSubsetWithItsSplitAndDroppedTimesteps) {
+  ATEX_REQUIRE_DATA_FILE(root, "panoptic_basketball/train_meta.json");
+  auto dataset = OpenDataset(root.parent_path().string());
+  ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
+  const Dataset& d = **dataset;
+  EXPECT_EQ(d.kind(), DatasetKind::kPanoptic);
+  EXPECT_EQ(d.timestep_count(), 30);
+  EXPECT_EQ(d.train_views().size(), 27u * 30);
+  EXPECT_EQ(d.test_views().size(), 4u * 30);
+  ASSERT_EQ(d.warnings().size(), 1u);
+  EXPECT_NE(d.warnings()[0].find("120 of 150"), std::string::npos) << d.warnings()[0];
+  std::set<int> test_ids, train_ids;
+  for (const View& v : d.test_views()) test_ids.insert(v.camera_id);
+  for (const View& v : d.train_views()) train_ids.insert(v.camera_id);
+  EXPECT_EQ(test_ids, (std::set<int>{0, 10, 15, 30}));
+  EXPECT_EQ(train_ids.size(), 27u);
+  EXPECT_FLOAT_EQ(d.time_min(), 0.0f);
+  EXPECT_FLOAT_EQ(d.time_max(), 1.0f);
+  EXPECT_TRUE(d.has_masks());
+  const View& last = d.train_views().back();
+  EXPECT_EQ(last.timestep, 29);
+  EXPECT_DOUBLE_EQ(last.camera.time, 1.0);
+  EXPECT_DOUBLE_EQ(d.train_views()[27].camera.time, 1.0 / 29);  // timestep 1, first camera
+
+  // Every camera looks at the middle of the capture: the mean of the camera
+  // centres (inside the dome, a little above the floor) is in front of every
+  // camera and projects into (or just beside) every image.
+  double mean[3] = {0, 0, 0};
+  std::vector<const View*> first;
+  for (const auto* views : {&d.train_views(), &d.test_views()}) {
+    for (const View& v : *views) {
+      if (v.timestep != 0) continue;
+      const auto c = v.camera.Center();
+      for (int a = 0; a < 3; ++a) mean[a] += c[a];
+      first.push_back(&v);
+    }
+  }
+  ASSERT_EQ(first.size(), 31u);
+  for (double& m : mean) m /= first.size();
+  for (const View* v : first) {
+    const auto p = ProjectPoint(v->camera, mean[0], mean[1], mean[2]);
+    EXPECT_GT(p[2], 0) << v->camera.name;
+    EXPECT_GT(p[0], -0.25 * 640) << v->camera.name;
+    EXPECT_LT(p[0], 1.25 * 640) << v->camera.name;
+    EXPECT_GT(p[1], -0.25 * 360) << v->camera.name;
+    EXPECT_LT(p[1], 1.25 * 360) << v->camera.name;
+  }
+
+  // Images and masks.
+  auto image = d.LoadImage(d.test_views()[0]);
+  ASSERT_TRUE(image.ok()) << image.status().ToString();
+  EXPECT_EQ((*image)->width, 640);
+  EXPECT_EQ((*image)->channels, 3);
+  auto mask = d.LoadMask(d.train_views()[0]);
+  ASSERT_TRUE(mask.ok()) << mask.status().ToString();
+  EXPECT_EQ((*mask)->channels, 1);
+  for (float v : (*mask)->pixels) ASSERT_TRUE(v == 0.0f || v == 1.0f);
+  EXPECT_EQ(d.LoadMask(d.test_views()[0]).status().code(), StatusCode::kNotFound);
+}
+
+TEST(Panoptic, OptionsDownscaleTimestepsAndTestCameras) {
+  ATEX_REQUIRE_DATA_FILE(root, "panoptic_basketball/train_meta.json");
+  DatasetOptions options;
+  options.downscale = 2;
+  options.max_timesteps = 5;
+  options.test_cameras = {1, 2};
+  auto dataset = OpenDataset(root.parent_path().string(), options);
+  ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
+  const Dataset& d = **dataset;
+  EXPECT_EQ(d.timestep_count(), 5);
+  EXPECT_EQ(d.test_views().size(), 2u * 5);
+  EXPECT_EQ(d.train_views().size(), 29u * 5);
+  EXPECT_DOUBLE_EQ(d.test_views().back().camera.time, 1.0);
+  auto full = OpenDataset(root.parent_path().string());
+  ASSERT_TRUE(full.ok());
+  const View& small = d.test_views()[0];
+  const View* big = nullptr;
+  for (const View& v : (*full)->train_views()) {
+    if (v.camera_id == small.camera_id && v.timestep == small.timestep) big = &v;
+  }
+  ASSERT_NE(big, nullptr);
+  EXPECT_EQ(small.camera.width, 320);
+  EXPECT_EQ(small.camera.height, 180);
+  EXPECT_DOUBLE_EQ(small.camera.fx, big->camera.fx / 2);
+  EXPECT_DOUBLE_EQ(small.camera.cy, big->camera.cy / 2);
+  // A world point lands on the same spot in both, at half the pixel coordinates.
+  const auto p_big = ProjectPoint(big->camera, 0.1, 0.5, 0.2);
+  const auto p_small = ProjectPoint(small.camera, 0.1, 0.5, 0.2);
+  EXPECT_NEAR(p_small[0], p_big[0] / 2, 1e-9);
+  EXPECT_NEAR(p_small[1], p_big[1] / 2, 1e-9);
+  auto a = d.LoadImage(small);
+  auto b = (*full)->LoadImage(*big);
+  ASSERT_TRUE(a.ok() && b.ok());
+  auto expected = DownscaleImage(**b, 2);
+  ASSERT_TRUE(expected.ok());
+  EXPECT_EQ((*a)->pixels, expected->pixels);
+  auto mask = d.LoadMask(d.train_views()[3]);
+  ASSERT_TRUE(mask.ok());
+  EXPECT_EQ((*mask)->width, 320);
+  for (float v : (*mask)->pixels) ASSERT_TRUE(v == 0.0f || v == 1.0f);
+
+  options.test_cameras = {99};
+  EXPECT_EQ(OpenDataset(root.parent_path().string(), options).status().code(), StatusCode::kNotFound);
+}
+
+TEST(Panoptic, MalformedMetasAreErrors) {
+  testing::TempDir dir;
+  const std::string good_entry = R"("k": [[[[100,0,8],[0,100,6],[0,0,1]]]], "w2c": [[[[1,0,0,0],[0,1,0,0],[0,0,1,2],[0,0,0,1]]]])";
+  WriteText(dir / "test_meta.json", "{\"w\": 16, \"h\": 12, " + good_entry + R"(, "fn": [["0/000000.jpg"]], "cam_id": [[0]]})");
+  WriteText(dir / "train_meta.json", "{\"w\": 16, \"h\": 12, " + good_entry + R"(, "fn": [["../../etc/passwd"]], "cam_id": [[1]]})");
+  EXPECT_EQ(OpenDataset(dir.path().string()).status().code(), StatusCode::kCorrupt);
+  WriteText(dir / "train_meta.json", R"({"w": 16, "h": 12, "k": [], "w2c": [[]], "fn": [], "cam_id": []})");
+  EXPECT_EQ(OpenDataset(dir.path().string()).status().code(), StatusCode::kCorrupt);
+  WriteText(dir / "train_meta.json", R"({"w": 16, "h": )");
+  EXPECT_EQ(OpenDataset(dir.path().string()).status().code(), StatusCode::kCorrupt);
+  // Well-formed but no images at all.
+  WriteText(dir / "train_meta.json", "{\"w\": 16, \"h\": 12, " + good_entry + R"(, "fn": [["1/000000.jpg"]], "cam_id": [[1]]})");
+  EXPECT_EQ(OpenDataset(dir.path().string()).status().code(), StatusCode::kNotFound);
+}
+
+// --- the tiny lego .npz (real data) ------------------------------------------------
+TEST(LegoNpz, SplitsIntrinsicsAndCameras) {
+  ATEX_REQUIRE_DATA_FILE(npz, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  DatasetOptions options;
+  options.load_val_split = true;
+  auto dataset = OpenDataset(npz.string(), options);
+  ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
+  const Dataset& d = **dataset;
+  EXPECT_EQ(d.kind(), DatasetKind::kDNerfNpz);
+  EXPECT_EQ(d.train_views().size(), 50u);
+  EXPECT_EQ(d.val_views().size(), 11u);
+  EXPECT_EQ(d.test_views().size(), 20u);
+  EXPECT_GE(d.time_min(), 0.0f);
+  EXPECT_LE(d.time_max(), 1.0f);
+  EXPECT_GT(d.time_max() - d.time_min(), 0.9f);
+  EXPECT_NEAR(d.val_views()[0].camera.time, 0.0, 1e-6);
+  EXPECT_NEAR(d.val_views()[10].camera.time, 1.0, 1e-6);
+  for (const auto* views : {&d.train_views(), &d.test_views()}) {
+    for (const View& v : *views) {
+      EXPECT_NEAR(v.camera.fx, 138.8888, 1e-3);
+      EXPECT_DOUBLE_EQ(v.camera.cx, 50.0);
+      // The D-NeRF cameras orbit the origin and look at it: it projects near the
+      // image centre, in front of the camera.
+      const auto p = ProjectPoint(v.camera, 0, 0, 0);
+      EXPECT_GT(p[2], 1.0) << v.camera.name;
+      EXPECT_NEAR(p[0], 50.0, 3.0) << v.camera.name;
+      EXPECT_NEAR(p[1], 50.0, 3.0) << v.camera.name;
+    }
+  }
+  // Blender's world z is up: in every OpenCV camera the world +z axis points up the image (negative v).
+  const View& v = d.test_views()[3];
+  const auto base = ProjectPoint(v.camera, 0, 0, 0);
+  const auto up = ProjectPoint(v.camera, 0, 0, 0.5);
+  EXPECT_LT(up[1], base[1]);
+  auto image = d.LoadImage(d.train_views()[7]);
+  ASSERT_TRUE(image.ok());
+  EXPECT_EQ((*image)->width, 100);
+  auto arrays = ReadNpzFile(npz.string());
+  ASSERT_TRUE(arrays.ok());
+  const std::vector<float> all = arrays->at("images").ToFloat();
+  EXPECT_TRUE(std::equal((*image)->pixels.begin(), (*image)->pixels.end(), all.begin() + 7 * 30000));
+  EXPECT_EQ(d.LoadMask(d.train_views()[0]).status().code(), StatusCode::kNotFound);
+}
+
+// --- synthetic D-NeRF folder ---------------------------------------------------------
+TEST(DNerf, BlenderPosesRgbaFramesAndMissingFiles) {
+  testing::TempDir dir;
+  // A camera at (0, -4, 0) in Blender's z-up world, looking along +y at the origin:
+  // camera axes in world: right = +x, up = +z, back = -y.
+  const std::string pose = "[[1,0,0,0],[0,0,-1,-4],[0,1,0,0],[0,0,0,1]]";
+  nlohmann::json train = nlohmann::json::parse(R"({"camera_angle_x": 0.6911112070083618, "frames": []})");
+  for (int i = 0; i < 3; ++i) {
+    train["frames"].push_back({{"file_path", "./train/r_00" + std::to_string(i)},
+                               {"time", i / 2.0},
+                               {"transform_matrix", nlohmann::json::parse(pose)}});
+  }
+  WriteText(dir / "transforms_train.json", train.dump());
+  nlohmann::json test = train;
+  test["frames"] = nlohmann::json::array({train["frames"][1]});
+  test["frames"][0]["file_path"] = "./test/r_000.png";
+  WriteText(dir / "transforms_test.json", test.dump());
+  fs::create_directories(dir / "train");
+  fs::create_directories(dir / "test");
+  Image rgba(8, 6, 4);
+  for (int y = 0; y < 6; ++y) {
+    for (int x = 0; x < 8; ++x) {
+      rgba.at(x, y, 0) = 1.0f;
+      rgba.at(x, y, 1) = 0.4f;
+      rgba.at(x, y, 2) = 0.2f;
+      rgba.at(x, y, 3) = x < 4 ? 1.0f : 0.0f;  // left half opaque
+    }
+  }
+  ASSERT_TRUE(WriteImage((dir / "train/r_000.png").string(), rgba).ok());
+  ASSERT_TRUE(WriteImage((dir / "train/r_002.png").string(), rgba).ok());  // r_001 is missing
+  ASSERT_TRUE(WriteImage((dir / "test/r_000.png").string(), rgba).ok());
+  DatasetOptions options;
+  options.background = std::array<float, 3>{0.0f, 0.0f, 1.0f};
+  auto dataset = OpenDataset(dir.path().string(), options);
+  ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
+  const Dataset& d = **dataset;
+  EXPECT_EQ(d.kind(), DatasetKind::kDNerf);
+  ASSERT_EQ(d.train_views().size(), 2u);
+  ASSERT_EQ(d.test_views().size(), 1u);
+  ASSERT_EQ(d.warnings().size(), 1u);
+  EXPECT_NE(d.warnings()[0].find("1 of 3"), std::string::npos);
+  EXPECT_DOUBLE_EQ(d.train_views()[1].camera.time, 1.0);
+  const Camera& cam = d.train_views()[0].camera;
+  EXPECT_NEAR(cam.fx, 4.0 / std::tan(0.5 * 0.6911112070083618), 1e-9);
+  EXPECT_DOUBLE_EQ(cam.cx, 4.0);
+  EXPECT_DOUBLE_EQ(cam.cy, 3.0);
+  const auto centre = cam.Center();
+  EXPECT_NEAR(centre[1], -4.0, 1e-12);
+  const auto origin = ProjectPoint(cam, 0, 0, 0);
+  EXPECT_NEAR(origin[0], 4.0, 1e-9);
+  EXPECT_NEAR(origin[1], 3.0, 1e-9);
+  EXPECT_NEAR(origin[2], 4.0, 1e-12);
+  EXPECT_GT(ProjectPoint(cam, 0.3, 0, 0)[0], 4.0);  // world +x is image right
+  EXPECT_LT(ProjectPoint(cam, 0, 0, 0.3)[1], 3.0);  // world +z (up) is image up
+  auto image = d.LoadImage(d.train_views()[0]);
+  ASSERT_TRUE(image.ok()) << image.status().ToString();
+  EXPECT_EQ((*image)->channels, 3);
+  EXPECT_FLOAT_EQ((*image)->at(1, 1, 0), 1.0f);  // opaque: the frame's colour
+  EXPECT_FLOAT_EQ((*image)->at(6, 1, 2), 1.0f);  // transparent: the background
+  EXPECT_FLOAT_EQ((*image)->at(6, 1, 0), 0.0f);
+  ASSERT_TRUE(d.has_masks());
+  auto mask = d.LoadMask(d.test_views()[0]);
+  ASSERT_TRUE(mask.ok()) << mask.status().ToString();
+  EXPECT_FLOAT_EQ((*mask)->at(1, 1, 0), 1.0f);
+  EXPECT_FLOAT_EQ((*mask)->at(6, 1, 0), 0.0f);
+  options.test_cameras = {0};
+  EXPECT_EQ(OpenDataset(dir.path().string(), options).status().code(), StatusCode::kInvalidArgument);
+}
+
+TEST(DNerf, NonRigidPoseIsRefused) {
+  testing::TempDir dir;
+  WriteText(dir / "transforms_train.json",
+            R"({"camera_angle_x": 0.7, "frames": [{"file_path": "a", "time": 0,
+                "transform_matrix": [[2,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]})");
+  ASSERT_TRUE(WriteImage((dir / "a.png").string(), Image(4, 4, 3)).ok());
+  EXPECT_EQ(OpenDataset(dir.path().string()).status().code(), StatusCode::kCorrupt);
+}
+
+// --- synthetic N3DV folders ---------------------------------------------------------
+// The OpenCV frame of camera c: centre (c, 2, 3), looking along world +x, image
+// down = world −z, image right = world −y (a right-handed camera frame).
+constexpr double kForward[3] = {1, 0, 0}, kDown[3] = {0, 0, -1}, kRight[3] = {0, -1, 0};
+
+// LLFF row: 3x5 [R | t | hwf] with rotation columns (down, right, back), then near, far.
+std::vector<double> LlffRow(double cx, double h, double w, double focal) {
+  std::vector<double> row(17);
+  const double centre[3] = {cx, 2, 3};
+  for (int i = 0; i < 3; ++i) {
+    row[i * 5 + 0] = kDown[i];
+    row[i * 5 + 1] = kRight[i];
+    row[i * 5 + 2] = -kForward[i];
+    row[i * 5 + 3] = centre[i];
+  }
+  row[4] = h;
+  row[9] = w;
+  row[14] = focal;
+  row[15] = 0.5;
+  row[16] = 20;
+  return row;
+}
+
+// Writes a scene of `cameras` x `frames` PNGs of 16x12 whose pixel (0, 0) encodes (camera, frame).
+void WriteN3dv(const fs::path& root, int cameras, int frames, bool images_subfolder, const std::string& ext = ".png") {
+  std::vector<double> rows;
+  for (int c = 0; c < cameras; ++c) {
+    const std::vector<double> row = LlffRow(c, 24, 32, 40);  // poses at twice the frames' resolution
+    rows.insert(rows.end(), row.begin(), row.end());
+  }
+  ASSERT_TRUE(WriteNpyFile((root / "poses_bounds.npy").string(), NpyArray::FromDoubles({cameras, 17}, rows)).ok());
+  for (int c = 0; c < cameras; ++c) {
+    char name[16];
+    std::snprintf(name, sizeof(name), "cam%02d", c);
+    const fs::path dir = images_subfolder ? root / name / "images" : root / name;
+    fs::create_directories(dir);
+    for (int f = 0; f < frames; ++f) {
+      Image image(16, 12, 3, 0.5f);
+      image.at(0, 0, 0) = c / 255.0f;
+      image.at(0, 0, 1) = (f % 256) / 255.0f;
+      image.at(0, 0, 2) = (f / 256) / 255.0f;
+      char file[16];
+      std::snprintf(file, sizeof(file), "%04d", f);
+      // Plain (non-atomic) writes: thousands of fsyncs would dominate the test's time.
+      auto bytes = EncodeImage(image, ext == ".png" ? ImageFormat::kPng : ImageFormat::kJpeg);
+      ASSERT_TRUE(bytes.ok());
+      std::ofstream(dir / (file + ext), std::ios::binary)
+          .write(reinterpret_cast<const char*>(bytes->data()), static_cast<std::streamsize>(bytes->size()));
+    }
+  }
+}
+
+TEST(N3dv, LlffPosesBecomeOpenCvCameras) {
+  testing::TempDir dir;
+  WriteN3dv(dir.path(), 3, 4, true);
+  auto dataset = OpenDataset(dir.path().string());
+  ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
+  const Dataset& d = **dataset;
+  EXPECT_EQ(d.kind(), DatasetKind::kN3dv);
+  EXPECT_EQ(d.timestep_count(), 4);
+  ASSERT_EQ(d.test_views().size(), 4u);  // cam00
+  ASSERT_EQ(d.train_views().size(), 8u);
+  for (const View& v : d.test_views()) EXPECT_EQ(v.camera_id, 0);
+  EXPECT_DOUBLE_EQ(d.test_views()[3].camera.time, 1.0);
+  EXPECT_DOUBLE_EQ(d.test_views()[1].camera.time, 1.0 / 3);
+  EXPECT_FLOAT_EQ(d.depth_bounds()[0], 0.5f);
+  EXPECT_FLOAT_EQ(d.depth_bounds()[1], 20.0f);
+  const View& v = d.train_views()[4];  // cam02, frame 0
+  ASSERT_EQ(v.camera_id, 2);
+  const Camera& cam = v.camera;
+  EXPECT_EQ(cam.width, 16);
+  EXPECT_DOUBLE_EQ(cam.fx, 20.0);  // focal 40 at 32 px wide, frames 16 px wide
+  EXPECT_DOUBLE_EQ(cam.cx, 8.0);
+  const auto c = cam.Center();
+  EXPECT_NEAR(c[0], 2.0, 1e-12);
+  EXPECT_NEAR(c[1], 2.0, 1e-12);
+  EXPECT_NEAR(c[2], 3.0, 1e-12);
+  // A point 2 units ahead projects to the principal point at depth 2; offsets
+  // along the camera's right/down axes move it right/down in the image.
+  auto at = [&](double ahead, double right, double down) {
+    double p[3];
+    for (int i = 0; i < 3; ++i) p[i] = c[i] + ahead * kForward[i] + right * kRight[i] + down * kDown[i];
+    return ProjectPoint(cam, p[0], p[1], p[2]);
+  };
+  const auto centre = at(2, 0, 0);
+  EXPECT_NEAR(centre[0], 8.0, 1e-12);
+  EXPECT_NEAR(centre[1], 6.0, 1e-12);
+  EXPECT_NEAR(centre[2], 2.0, 1e-12);
+  EXPECT_NEAR(at(2, 0.5, 0)[0], 8.0 + 20.0 * 0.25, 1e-12);
+  EXPECT_NEAR(at(2, 0, 0.5)[1], 6.0 + 20.0 * 0.25, 1e-12);
+  auto image = d.LoadImage(v);
+  ASSERT_TRUE(image.ok()) << image.status().ToString();
+  EXPECT_NEAR((*image)->at(0, 0, 0), 2 / 255.0f, 1e-6);
+  EXPECT_NEAR((*image)->at(0, 0, 1), 0.0f, 1e-6);
+  EXPECT_EQ(d.LoadMask(v).status().code(), StatusCode::kNotFound);
+}
+
+TEST(N3dv, FlatLayoutDownscaleAndErrors) {
+  testing::TempDir dir;
+  WriteN3dv(dir.path(), 2, 3, false, ".jpg");
+  DatasetOptions options;
+  options.downscale = 2;
+  options.test_cameras = {1};
+  auto dataset = OpenDataset(dir.path().string(), options);
+  ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
+  EXPECT_EQ((*dataset)->test_views()[0].camera_id, 1);
+  EXPECT_EQ((*dataset)->train_views()[0].camera.width, 8);
+  EXPECT_DOUBLE_EQ((*dataset)->train_views()[0].camera.fx, 10.0);
+  auto image = (*dataset)->LoadImage((*dataset)->train_views()[2]);
+  ASSERT_TRUE(image.ok()) << image.status().ToString();
+  EXPECT_EQ((*image)->width, 8);
+  EXPECT_EQ((*image)->height, 6);
+  // A camera folder without a pose row.
+  fs::create_directories(dir / "cam02");
+  EXPECT_EQ(OpenDataset(dir.path().string()).status().code(), StatusCode::kCorrupt);
+  options.test_cameras = {7};
+  fs::remove_all(dir / "cam02");
+  EXPECT_EQ(OpenDataset(dir.path().string(), options).status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(OpenDataset((dir / "nothing").string()).status().code(), StatusCode::kNotFound);
+}
+
+TEST(N3dv, LongVideoStaysWithinTheImageCacheLimit) {
+  // 20 cameras x 300 frames: iterating over every view must not keep them all.
+  testing::TempDir dir;
+  WriteN3dv(dir.path(), 20, 300, true);
+  DatasetOptions options;
+  options.image_cache_bytes = 40000;  // ~17 decoded 16x12 RGB images
+  auto dataset = OpenDataset(dir.path().string(), options);
+  ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
+  const Dataset& d = **dataset;
+  ASSERT_EQ(d.train_views().size(), 19u * 300);
+  uint64_t peak = 0;
+  for (const View& v : d.train_views()) {
+    auto image = d.LoadImage(v);
+    ASSERT_TRUE(image.ok()) << image.status().ToString();
+    ASSERT_NEAR((*image)->at(0, 0, 0), v.camera_id / 255.0f, 1e-6);
+    ASSERT_NEAR((*image)->at(0, 0, 1) + 256 * (*image)->at(0, 0, 2), v.timestep / 255.0f, 1e-4);
+    peak = std::max(peak, d.cache_bytes());
+    ASSERT_LE(d.cache_bytes(), options.image_cache_bytes);
+  }
+  EXPECT_GT(peak, options.image_cache_bytes / 2);  // the cache is used, not bypassed
+
+  // Concurrent loads from several threads return the right images.
+  std::vector<std::thread> threads;
+  std::atomic<int> wrong{0};
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&, t] {
+      for (size_t i = t; i < 2000; i += 4) {
+        const View& v = d.train_views()[(i * 7919) % d.train_views().size()];
+        auto image = d.LoadImage(v);
+        if (!image.ok() || std::abs((*image)->at(0, 0, 0) - v.camera_id / 255.0f) > 1e-6) ++wrong;
+      }
+    });
+  }
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(wrong.load(), 0);
+  EXPECT_LE(d.cache_bytes(), options.image_cache_bytes);
+}
+
+// --- conversions and the in-memory dataset ---------------------------------------------
+TEST(CameraConversions, BlenderIdentityLooksDownNegativeZ) {
+  // Blender camera at (0, 0, 5) with identity rotation looks along −z (its back is +z).
+  std::array<double, 16> c2w = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 5, 0, 0, 0, 1};
+  auto w2c = BlenderCameraToWorldToOpenCv(c2w);
+  ASSERT_TRUE(w2c.ok());
+  Camera cam;
+  cam.fx = cam.fy = 10;
+  cam.world_to_camera = *w2c;
+  const auto p = ProjectPoint(cam, 0, 0, 0);
+  EXPECT_NEAR(p[2], 5.0, 1e-12);
+  EXPECT_LT(ProjectPoint(cam, 0, 1, 0)[1], 0.0);  // world +y (camera up) is image up
+  EXPECT_GT(ProjectPoint(cam, 1, 0, 0)[0], 0.0);  // world +x is image right
+}
+
+TEST(InMemoryDataset, ViewsImagesAndValidation) {
+  std::vector<InMemoryFrame> frames(2);
+  for (int i = 0; i < 2; ++i) {
+    frames[i].view.camera.width = 4;
+    frames[i].view.camera.height = 2;
+    frames[i].view.camera.fx = frames[i].view.camera.fy = 3;
+    frames[i].view.camera.time = i;
+    frames[i].view.timestep = i;
+    frames[i].image = Image(4, 2, 3, 0.25f * (i + 1));
+    frames[i].test = i == 1;
+  }
+  frames[0].mask = Image(4, 2, 1, 1.0f);
+  auto dataset = MakeInMemoryDataset("synthetic", frames);
+  ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
+  EXPECT_EQ((*dataset)->timestep_count(), 2);
+  EXPECT_EQ((*dataset)->time_max(), 1.0f);
+  auto image = (*dataset)->LoadImage((*dataset)->test_views()[0]);
+  ASSERT_TRUE(image.ok());
+  EXPECT_FLOAT_EQ((*image)->pixels[0], 0.5f);
+  EXPECT_TRUE((*dataset)->LoadMask((*dataset)->train_views()[0]).ok());
+  EXPECT_EQ((*dataset)->LoadMask((*dataset)->test_views()[0]).status().code(), StatusCode::kNotFound);
+  frames[1].image = Image(5, 2, 3);
+  EXPECT_EQ(MakeInMemoryDataset("bad", frames).status().code(), StatusCode::kInvalidArgument);
+  DatasetOptions bad;
+  bad.downscale = 0;
+  EXPECT_EQ(MakeInMemoryDataset("bad", {}, bad).status().code(), StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace atex

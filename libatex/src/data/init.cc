@@ -1,0 +1,393 @@
+// Initial Gaussians without a point cloud: visual hull, view volume, random
+// cube (see atex/init.h for the methods and their parameters).
+#include "atex/init.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+namespace atex {
+namespace {
+
+constexpr double kShC0 = 0.28209479177387814;
+constexpr int kCoarseResolution = 48;
+constexpr int kAttemptsPerPoint = 50;
+
+// Deterministic uniform numbers (the standard distributions are not portable).
+class Rng {
+ public:
+  explicit Rng(uint64_t seed) : state_(seed ^ 0x9E3779B97F4A7C15ull) {}
+  uint64_t Next() {  // splitmix64
+    uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  double Uniform() { return double(Next() >> 11) * 0x1.0p-53; }  // [0, 1)
+  double Uniform(double lo, double hi) { return lo + (hi - lo) * Uniform(); }
+  size_t Index(size_t n) { return static_cast<size_t>(Uniform() * double(n)) % n; }
+
+ private:
+  uint64_t state_;
+};
+
+struct CameraImages {
+  const View* view = nullptr;
+  std::shared_ptr<const Image> image;  // [H][W][3]
+  std::shared_ptr<const Image> mask;   // [H][W][1] in {0, 1}, or null
+};
+
+// Pixel hit by a world point, or false when behind the camera or outside the image.
+bool Project(const Camera& cam, const double x[3], int* px, int* py) {
+  const auto& m = cam.world_to_camera;
+  const double cx = m[0] * x[0] + m[1] * x[1] + m[2] * x[2] + m[3];
+  const double cy = m[4] * x[0] + m[5] * x[1] + m[6] * x[2] + m[7];
+  const double cz = m[8] * x[0] + m[9] * x[1] + m[10] * x[2] + m[11];
+  if (!(cz > 1e-6)) return false;
+  const double u = cam.fx * cx / cz + cam.cx, v = cam.fy * cy / cz + cam.cy;
+  if (!(u >= 0 && v >= 0 && u < cam.width && v < cam.height)) return false;
+  *px = static_cast<int>(u);
+  *py = static_cast<int>(v);
+  return true;
+}
+
+// Counts of the hull rule at a point: cameras that see it, and those whose mask contains it.
+struct HullVotes {
+  int seen = 0;
+  int inside = 0;
+};
+
+HullVotes Vote(const std::vector<CameraImages>& cams, const double x[3]) {
+  HullVotes votes;
+  for (const CameraImages& c : cams) {
+    int px, py;
+    if (!Project(c.view->camera, x, &px, &py)) continue;
+    ++votes.seen;
+    if (c.mask && c.mask->at(px, py, 0) > 0.5f) ++votes.inside;
+  }
+  return votes;
+}
+
+bool InsideHull(const HullVotes& v, const InitOptions& o) {
+  return v.seen >= o.min_views && v.inside >= o.hull_keep_fraction * v.seen - 1e-9;
+}
+
+struct Grid {
+  std::array<double, 3> lo{}, voxel{};
+  std::array<int, 3> dims{};
+  std::vector<uint8_t> kept;  // [dims z][dims y][dims x]
+
+  void Center(int i, int j, int k, double out[3]) const {
+    out[0] = lo[0] + (i + 0.5) * voxel[0];
+    out[1] = lo[1] + (j + 0.5) * voxel[1];
+    out[2] = lo[2] + (k + 0.5) * voxel[2];
+  }
+};
+
+Grid Carve(const std::array<double, 3>& lo, const std::array<double, 3>& hi, int resolution,
+           const std::vector<CameraImages>& cams, const InitOptions& options) {
+  Grid grid;
+  grid.lo = lo;
+  const double longest = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+  for (int a = 0; a < 3; ++a) {
+    grid.dims[a] = std::clamp(static_cast<int>(std::ceil((hi[a] - lo[a]) / longest * resolution)), 1, resolution);
+    grid.voxel[a] = (hi[a] - lo[a]) / grid.dims[a];
+  }
+  const long long total = (long long)grid.dims[0] * grid.dims[1] * grid.dims[2];
+  grid.kept.assign(total, 0);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (long long index = 0; index < total; ++index) {
+    const int i = static_cast<int>(index % grid.dims[0]);
+    const int j = static_cast<int>((index / grid.dims[0]) % grid.dims[1]);
+    const int k = static_cast<int>(index / (static_cast<long long>(grid.dims[0]) * grid.dims[1]));
+    double x[3];
+    grid.Center(i, j, k, x);
+    grid.kept[index] = InsideHull(Vote(cams, x), options) ? 1 : 0;
+  }
+  return grid;
+}
+
+// Bounds of the kept voxels, grown by `margin` voxels and clipped to the grid. False if none is kept.
+bool KeptBounds(const Grid& grid, int margin, std::array<double, 3>* lo, std::array<double, 3>* hi) {
+  std::array<int, 3> mn{INT32_MAX, INT32_MAX, INT32_MAX}, mx{-1, -1, -1};
+  for (int k = 0; k < grid.dims[2]; ++k) {
+    for (int j = 0; j < grid.dims[1]; ++j) {
+      for (int i = 0; i < grid.dims[0]; ++i) {
+        if (!grid.kept[(size_t(k) * grid.dims[1] + j) * grid.dims[0] + i]) continue;
+        const int c[3] = {i, j, k};
+        for (int a = 0; a < 3; ++a) {
+          mn[a] = std::min(mn[a], c[a]);
+          mx[a] = std::max(mx[a], c[a]);
+        }
+      }
+    }
+  }
+  if (mx[0] < 0) return false;
+  for (int a = 0; a < 3; ++a) {
+    (*lo)[a] = grid.lo[a] + std::max(0, mn[a] - margin) * grid.voxel[a];
+    (*hi)[a] = grid.lo[a] + std::min(grid.dims[a], mx[a] + 1 + margin) * grid.voxel[a];
+  }
+  return true;
+}
+
+struct SceneFrame {
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  double distance = 1;  // median camera distance to the centre
+};
+
+// The point nearest (least squares) to every optical axis, and the median
+// camera distance to it. For near-parallel axes (forward-facing rigs) the
+// centre is placed in front of the cameras at the middle of the depth bounds.
+SceneFrame EstimateScene(const std::vector<CameraImages>& cams, const Dataset& dataset) {
+  Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero(), mean_origin = Eigen::Vector3d::Zero(),
+                  mean_axis = Eigen::Vector3d::Zero();
+  for (const CameraImages& c : cams) {
+    const auto& m = c.view->camera.world_to_camera;
+    const auto center = c.view->camera.Center();
+    const Eigen::Vector3d o(center[0], center[1], center[2]);
+    const Eigen::Vector3d d = Eigen::Vector3d(m[8], m[9], m[10]).normalized();  // camera z axis in world
+    const Eigen::Matrix3d p = Eigen::Matrix3d::Identity() - d * d.transpose();
+    a += p;
+    b += p * o;
+    mean_origin += o;
+    mean_axis += d;
+  }
+  mean_origin /= double(cams.size());
+  SceneFrame scene;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(a);
+  const Eigen::Vector3d values = eigen.eigenvalues();  // ascending
+  if (cams.size() >= 2 && values[0] > 1e-3 * values[2]) {
+    scene.center = a.ldlt().solve(b);
+  } else {
+    const auto bounds = dataset.depth_bounds();
+    const double depth = bounds[1] > 0 ? 0.5 * (bounds[0] + bounds[1]) : 1.0;
+    scene.center = mean_origin + depth * mean_axis.normalized();
+  }
+  std::vector<double> distances;
+  for (const CameraImages& c : cams) {
+    const auto center = c.view->camera.Center();
+    distances.push_back((Eigen::Vector3d(center[0], center[1], center[2]) - scene.center).norm());
+  }
+  std::nth_element(distances.begin(), distances.begin() + distances.size() / 2, distances.end());
+  scene.distance = std::max(distances[distances.size() / 2], 1e-6);
+  return scene;
+}
+
+// Mean colour of the pixels a point projects to. `want_mask`: 1 = only pixels
+// inside masks, 0 = only outside, −1 = any (cameras without masks always count).
+// Falls back to any pixel, then to grey.
+std::array<float, 3> MeanColour(const std::vector<CameraImages>& cams, const double x[3], int want_mask) {
+  for (int pass = 0; pass < 2; ++pass) {
+    double sum[3] = {0, 0, 0};
+    int count = 0;
+    for (const CameraImages& c : cams) {
+      int px, py;
+      if (!Project(c.view->camera, x, &px, &py)) continue;
+      if (pass == 0 && want_mask >= 0 && c.mask && (c.mask->at(px, py, 0) > 0.5f) != (want_mask == 1)) continue;
+      for (int ch = 0; ch < 3; ++ch) sum[ch] += c.image->at(px, py, ch);
+      ++count;
+    }
+    if (count > 0) return {float(sum[0] / count), float(sum[1] / count), float(sum[2] / count)};
+  }
+  return {0.5f, 0.5f, 0.5f};
+}
+
+Status ValidateInitOptions(const InitOptions& o) {
+  if (o.sh_degree < 0 || o.sh_degree > kMaxShDegree) {
+    return MakeError(StatusCode::kInvalidArgument, "init: sh_degree ", o.sh_degree, " (0..3)");
+  }
+  if (o.min_views < 1 || o.hull_resolution < 4 || o.hull_resolution > 1024 || !(o.hull_keep_fraction > 0) ||
+      o.hull_keep_fraction > 1 || o.hull_points < 0 || o.volume_points < 0 || o.cube_points < 0 ||
+      !(o.cube_half_extent > 0) || !(o.initial_opacity > 0 && o.initial_opacity < 1) || o.knn_neighbors < 1 ||
+      o.knn_neighbors > 16) {
+    return MakeError(StatusCode::kInvalidArgument,
+                     "init: options out of range (min_views >= 1, hull_resolution 4..1024, hull_keep_fraction (0, 1], "
+                     "point counts >= 0, cube_half_extent > 0, initial_opacity (0, 1), knn_neighbors 1..16)");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+const char* InitMethodName(InitMethod method) {
+  switch (method) {
+    case InitMethod::kAuto: return "auto";
+    case InitMethod::kVisualHull: return "hull";
+    case InitMethod::kViewVolume: return "volume";
+    case InitMethod::kHullAndViewVolume: return "hull+volume";
+    case InitMethod::kRandomCube: return "cube";
+  }
+  return "?";
+}
+
+StatusOr<InitMethod> ParseInitMethod(const std::string& name) {
+  for (InitMethod m : {InitMethod::kAuto, InitMethod::kVisualHull, InitMethod::kViewVolume,
+                       InitMethod::kHullAndViewVolume, InitMethod::kRandomCube}) {
+    if (name == InitMethodName(m)) return m;
+  }
+  return MakeError(StatusCode::kInvalidArgument, "unknown init method '", name,
+                   "' (auto, hull, volume, hull+volume, cube)");
+}
+
+StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOptions& options, InitReport* report) {
+  ATEX_RETURN_IF_ERROR(ValidateInitOptions(options));
+  InitReport local_report;
+  InitReport& rep = report ? *report : local_report;
+  rep = InitReport();
+
+  // Training views of the first timestep (all training views for time-per-frame datasets).
+  const std::vector<View>& train = dataset.train_views();
+  int first_step = -1;
+  for (const View& v : train) {
+    if (v.timestep >= 0 && (first_step < 0 || v.timestep < first_step)) first_step = v.timestep;
+  }
+  std::vector<const View*> first_views;
+  for (const View& v : train) {
+    if (first_step < 0 || v.timestep == first_step) first_views.push_back(&v);
+  }
+  const bool multi_view = first_step >= 0 && first_views.size() >= 2;
+
+  InitMethod method = options.method;
+  if (method == InitMethod::kAuto) {
+    method = !multi_view                ? InitMethod::kRandomCube
+             : dataset.has_masks()      ? InitMethod::kHullAndViewVolume
+                                        : InitMethod::kViewVolume;
+  }
+  rep.method = method;
+  const bool use_hull = method == InitMethod::kVisualHull || method == InitMethod::kHullAndViewVolume;
+  const bool use_volume = method == InitMethod::kViewVolume || method == InitMethod::kHullAndViewVolume;
+  Rng rng(options.seed);
+  std::vector<float> positions;  // [N][3]
+  std::vector<float> colours;    // [N][3]
+
+  if (method == InitMethod::kRandomCube) {
+    const double h = options.cube_half_extent;
+    for (int i = 0; i < options.cube_points; ++i) {
+      for (int a = 0; a < 3; ++a) positions.push_back(static_cast<float>(rng.Uniform(-h, h)));
+      for (int a = 0; a < 3; ++a) colours.push_back(static_cast<float>(rng.Uniform()));
+    }
+    rep.cube_points = options.cube_points;
+  } else {
+    if (first_views.empty()) return MakeError(StatusCode::kNotFound, dataset.name(), ": init: no training views");
+    std::vector<CameraImages> cams;
+    for (const View* v : first_views) {
+      CameraImages c;
+      c.view = v;
+      ATEX_ASSIGN_OR_RETURN(c.image, dataset.LoadImage(*v));
+      if (dataset.has_masks() && !v->mask.empty()) {
+        ATEX_ASSIGN_OR_RETURN(c.mask, dataset.LoadMask(*v));
+      }
+      cams.push_back(std::move(c));
+    }
+    rep.cameras = static_cast<int>(cams.size());
+    const int masked = static_cast<int>(std::count_if(cams.begin(), cams.end(), [](const auto& c) { return c.mask != nullptr; }));
+    if (use_hull && masked < options.min_views) {
+      return MakeError(StatusCode::kNotFound, dataset.name(), ": init: the visual hull needs masks in at least ",
+                       options.min_views, " cameras of the first timestep, found ", masked);
+    }
+    const SceneFrame scene = EstimateScene(cams, dataset);
+    rep.scene_center = {scene.center[0], scene.center[1], scene.center[2]};
+    rep.camera_distance = scene.distance;
+
+    if (use_hull) {
+      // Hull votes count only cameras with masks.
+      std::vector<CameraImages> masked_cams;
+      for (const CameraImages& c : cams) {
+        if (c.mask) masked_cams.push_back(c);
+      }
+      const double r = scene.distance;
+      std::array<double, 3> lo{scene.center[0] - r, scene.center[1] - r, scene.center[2] - r};
+      std::array<double, 3> hi{scene.center[0] + r, scene.center[1] + r, scene.center[2] + r};
+      const Grid coarse = Carve(lo, hi, kCoarseResolution, masked_cams, options);
+      if (!KeptBounds(coarse, 1, &lo, &hi)) {
+        return MakeError(StatusCode::kNotFound, dataset.name(),
+                         ": init: the visual hull is empty (no voxel lies inside the masks of enough cameras)");
+      }
+      const Grid fine = Carve(lo, hi, options.hull_resolution, masked_cams, options);
+      std::vector<size_t> kept;
+      for (size_t i = 0; i < fine.kept.size(); ++i) {
+        if (fine.kept[i]) kept.push_back(i);
+      }
+      if (kept.empty()) {
+        return MakeError(StatusCode::kNotFound, dataset.name(), ": init: the refined visual hull is empty");
+      }
+      rep.hull_voxels = kept.size();
+      for (int a = 0; a < 3; ++a) {
+        rep.hull_box_min[a] = static_cast<float>(lo[a]);
+        rep.hull_box_max[a] = static_cast<float>(hi[a]);
+      }
+      const long long max_attempts = (long long)kAttemptsPerPoint * options.hull_points;
+      for (long long attempt = 0; attempt < max_attempts && rep.hull_points < size_t(options.hull_points); ++attempt) {
+        const size_t index = kept[rng.Index(kept.size())];
+        const int i = static_cast<int>(index % fine.dims[0]);
+        const int j = static_cast<int>((index / fine.dims[0]) % fine.dims[1]);
+        const int k = static_cast<int>(index / (size_t(fine.dims[0]) * fine.dims[1]));
+        double x[3];
+        fine.Center(i, j, k, x);
+        for (int a = 0; a < 3; ++a) x[a] += (rng.Uniform() - 0.5) * fine.voxel[a];
+        if (!InsideHull(Vote(masked_cams, x), options)) continue;
+        const std::array<float, 3> colour = MeanColour(cams, x, 1);
+        for (int a = 0; a < 3; ++a) {
+          positions.push_back(static_cast<float>(x[a]));
+          colours.push_back(colour[a]);
+        }
+        ++rep.hull_points;
+      }
+    }
+
+    if (use_volume) {
+      const auto bounds = dataset.depth_bounds();
+      const double near = bounds[1] > 0 ? bounds[0] : 0.1 * scene.distance;
+      const double far = bounds[1] > 0 ? bounds[1] : 2.5 * scene.distance;
+      const long long max_attempts = (long long)kAttemptsPerPoint * options.volume_points;
+      for (long long attempt = 0; attempt < max_attempts && rep.volume_points < size_t(options.volume_points);
+           ++attempt) {
+        const Camera& cam = cams[rng.Index(cams.size())].view->camera;
+        const double u = rng.Uniform(0, cam.width), v = rng.Uniform(0, cam.height);
+        const double depth = 1.0 / rng.Uniform(1.0 / far, 1.0 / near);  // uniform in disparity
+        // Camera-space point at z = depth, then to world: x = Wᵀ(p − T).
+        const double pc[3] = {(u - cam.cx) / cam.fx * depth, (v - cam.cy) / cam.fy * depth, depth};
+        const auto& m = cam.world_to_camera;
+        double x[3];
+        for (int a = 0; a < 3; ++a) {
+          x[a] = m[0 + a] * (pc[0] - m[3]) + m[4 + a] * (pc[1] - m[7]) + m[8 + a] * (pc[2] - m[11]);
+        }
+        const HullVotes votes = Vote(cams, x);
+        if (votes.seen < options.min_views) continue;
+        if (masked >= options.min_views && InsideHull(votes, options)) continue;  // foreground: the hull's job
+        const std::array<float, 3> colour = MeanColour(cams, x, masked > 0 ? 0 : -1);
+        for (int a = 0; a < 3; ++a) {
+          positions.push_back(static_cast<float>(x[a]));
+          colours.push_back(colour[a]);
+        }
+        ++rep.volume_points;
+      }
+    }
+  }
+
+  const size_t n = positions.size() / 3;
+  if (n == 0) {
+    return MakeError(StatusCode::kNotFound, dataset.name(), ": init (", InitMethodName(method),
+                     ") produced no points; check the cameras, masks and point counts");
+  }
+  Gaussians g;
+  g.sh_degree = options.sh_degree;
+  g.Resize(n);
+  g.positions = positions;
+  const std::vector<float> log_scales = NearestNeighborLogScales(positions, options.knn_neighbors);
+  const float opacity_logit = static_cast<float>(std::log(options.initial_opacity / (1.0 - options.initial_opacity)));
+  const int k = g.sh_coeffs();
+  for (size_t i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      g.log_scales[i * 3 + a] = log_scales[i];
+      g.sh[i * k * 3 + a] = static_cast<float>((colours[i * 3 + a] - 0.5) / kShC0);
+    }
+    g.rotations[i * 4] = 1.0f;
+    g.opacity_logits[i] = opacity_logit;
+  }
+  return g;
+}
+
+}  // namespace atex

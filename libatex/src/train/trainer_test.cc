@@ -1,0 +1,266 @@
+// The training loop on the CPU backend with the real tiny D-NeRF lego: learning,
+// texture growth, checkpoints and resume, NaN rollback.
+#include "atex/train/trainer.h"
+
+#include <cmath>
+#include <cstdio>
+
+#include <gtest/gtest.h>
+
+#include "atex/container.h"
+#include "atex/render.h"
+#include "atex/train/checkpoint.h"
+#include "core/test_support.h"
+
+namespace atex::train {
+namespace {
+
+// A small config: a few hundred CPU steps on 100x100 images.
+TrainConfig SmallConfig() {
+  TrainConfig c = DefaultConfig("dnerf");
+  c.stage1.coarse_iterations = 150;
+  c.stage1.fine_iterations = 100;
+  c.stage1.init_points = 4000;
+  c.stage1.densify.from_step = 50;
+  c.stage1.densify.interval = 50;
+  c.stage1.deformation.grid.channels = 8;
+  c.stage1.deformation.grid.base_resolution = {16, 16, 16, 8};
+  c.stage1.deformation.mlp_width = 32;
+  c.stage2.iterations = 30;
+  c.stage2.batch_size = 2;
+  c.stage2.growth_steps = {10, 20};
+  c.eval_every = 0;
+  c.checkpoint_every = 0;
+  return c;
+}
+
+std::unique_ptr<Dataset> OpenLego(const std::filesystem::path& path) {
+  auto dataset = OpenDataset(path.string());
+  EXPECT_TRUE(dataset.ok()) << dataset.status().ToString();
+  return dataset.ok() ? std::move(*dataset) : nullptr;
+}
+
+TEST(TrainerLego, CpuStageOneRaisesTestPsnrClearly) {
+  ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  auto data = OpenLego(path);
+  ASSERT_NE(data, nullptr);
+  TrainerOptions options;
+  options.config = SmallConfig();
+  options.stages = kStage1;
+  options.log_every = 25;
+  std::vector<std::pair<int, double>> curve;
+  options.progress = [&](const TrainProgress& p) {
+    if (p.event.empty()) curve.emplace_back(p.step + (p.phase == "fine" ? 150 : 0), p.psnr);
+    return true;
+  };
+  // The initial model's test PSNR: stage 1 with zero steps.
+  TrainerOptions initial_options = options;
+  initial_options.config.stage1.coarse_iterations = 0;
+  initial_options.config.stage1.fine_iterations = 0;
+  auto backend0 = MakeCpuBackend();
+  auto initial = Train(*data, *backend0, initial_options);
+  ASSERT_TRUE(initial.ok()) << initial.status().ToString();
+
+  auto backend = MakeCpuBackend();
+  auto trained = Train(*data, *backend, options);
+  ASSERT_TRUE(trained.ok()) << trained.status().ToString();
+  std::printf("[lego] test PSNR initial %.2f dB -> after %d steps %.2f dB (SSIM %.4f)\n", initial->test.mean.psnr,
+              trained->coarse_steps + trained->fine_steps, trained->test.mean.psnr, trained->test.mean.ssim);
+  for (const auto& [step, psnr] : curve) std::printf("[lego] step %d train PSNR %.2f\n", step, psnr);
+  EXPECT_GT(trained->test.mean.psnr, initial->test.mean.psnr + 5.0);
+  EXPECT_EQ(trained->test.views.size(), data->test_views().size());
+  ASSERT_TRUE(trained->asset.deformation.has_value());
+  EXPECT_TRUE(ValidateAsset(trained->asset).ok());
+}
+
+// Stage 2 on a short stage-1 model: growth happens, never beyond the budget, adaptive
+// uses fewer texels than uniform, and the stored statistics are complete.
+TEST(TrainerLego, CpuStageTwoGrowsWithinTheBudget) {
+  ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  auto data = OpenLego(path);
+  ASSERT_NE(data, nullptr);
+  TrainConfig config = SmallConfig();
+  config.stage1.coarse_iterations = 60;
+  config.stage1.fine_iterations = 20;
+  TrainerOptions s1;
+  s1.config = config;
+  s1.stages = kStage1;
+  auto b1 = MakeCpuBackend();
+  auto stage1 = Train(*data, *b1, s1);
+  ASSERT_TRUE(stage1.ok()) << stage1.status().ToString();
+  const size_t n = stage1->asset.gaussians.size();
+
+  uint64_t adaptive_texels = 0;
+  for (double fraction : {0.5, 1.0}) {
+    TrainerOptions s2;
+    s2.config = config;
+    s2.config.stage2.texel_budget_fraction = fraction;
+    s2.stages = kStage2;
+    auto b2 = MakeCpuBackend();
+    auto stage2 = Train(*data, *b2, s2, &stage1->asset);
+    ASSERT_TRUE(stage2.ok()) << stage2.status().ToString();
+    ASSERT_TRUE(stage2->asset.textures.has_value());
+    const TextureHistogram h = ComputeTextureHistogram(*stage2->asset.textures);
+    const uint64_t budget = static_cast<uint64_t>(std::llround(fraction * 16.0 * n));
+    EXPECT_LE(h.texels, budget);
+    int sizes_used = 0;
+    for (const auto& row : h.counts) {
+      for (uint64_t c : row) sizes_used += c > 0 ? 1 : 0;
+    }
+    std::printf("[lego stage 2] budget %.2f: %llu texels (uniform %llu), %d texture sizes in use, growths %zu\n",
+                fraction, static_cast<unsigned long long>(h.texels),
+                static_cast<unsigned long long>(h.uniform_texels()), sizes_used, stage2->growths.size());
+    EXPECT_GE(sizes_used, 2) << "growth left every texture the same size";
+    ASSERT_EQ(stage2->growths.size(), 2u);
+    EXPECT_GT(stage2->growths[0].grown, 0u);
+    for (const auto& g : stage2->growths) EXPECT_LE(g.texels_after, budget);
+    ASSERT_TRUE(stage2->asset.stats.has_value());
+    EXPECT_EQ(stage2->asset.stats->texture_demand.size(), n);
+    EXPECT_TRUE(ValidateAsset(stage2->asset).ok());
+    if (fraction == 1.0) adaptive_texels = h.texels;
+    if (fraction == 0.5) EXPECT_GT(stage2->growths[1].rejected_budget + stage2->growths[0].rejected_budget, 0u);
+  }
+  EXPECT_LT(adaptive_texels, 16u * n) << "adaptive should use fewer texels than uniform 4x4";
+}
+
+// Growth through the backend leaves the rendered image unchanged (corner-aligned resampling).
+TEST(TrainerLego, GrowthThroughTheBackendLeavesRendersUnchanged) {
+  ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  auto data = OpenLego(path);
+  ASSERT_NE(data, nullptr);
+  TrainConfig config = SmallConfig();
+  config.stage1.coarse_iterations = 30;
+  config.stage1.fine_iterations = 10;
+  config.stage2.iterations = 15;
+  config.stage2.growth_steps = {5};
+  TrainerOptions options;
+  options.config = config;
+  auto backend = MakeCpuBackend();
+  auto trained = Train(*data, *backend, options);
+  ASSERT_TRUE(trained.ok()) << trained.status().ToString();
+  ModelState state;
+  ASSERT_TRUE(backend->Save(&state).ok());
+  RenderRequest request;
+  request.active_sh_degree = state.gaussians.sh_degree;
+  const Camera& camera = data->test_views()[3].camera;
+  auto before = backend->Render(camera, request);
+  ASSERT_TRUE(before.ok());
+  TextureResize grow{state.textures->heights, state.textures->widths};
+  for (size_t i = 0; i < grow.heights.size(); ++i) {  // grow every texture that can grow, both axes
+    grow.heights[i] = static_cast<uint8_t>(std::min(4, grow.heights[i] * 2));
+    grow.widths[i] = static_cast<uint8_t>(std::min(4, grow.widths[i] * 2));
+  }
+  ASSERT_TRUE(backend->ResizeTextures(grow).ok());
+  auto after = backend->Render(camera, request);
+  ASSERT_TRUE(after.ok());
+  double worst = 0;
+  for (size_t k = 0; k < before->pixels.size(); ++k) {
+    worst = std::max(worst, double(std::abs(before->pixels[k] - after->pixels[k])));
+  }
+  std::printf("[growth invariance] max |render change| = %.3g\n", worst);
+  EXPECT_LE(worst, 1e-5);
+}
+
+TEST(TrainerLego, ResumeFromACheckpointReproducesTheUninterruptedRun) {
+  ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  auto data = OpenLego(path);
+  ASSERT_NE(data, nullptr);
+  testing::TempDir dir;
+  TrainConfig config = SmallConfig();
+  config.stage1.coarse_iterations = 20;
+  config.stage1.fine_iterations = 20;
+  config.stage1.densify.from_step = 5;
+  config.stage1.densify.interval = 10;
+  config.checkpoint_every = 10;
+  TrainerOptions full;
+  full.config = config;
+  full.stages = kStage1;
+  auto b1 = MakeCpuBackend();
+  auto straight = Train(*data, *b1, full);
+  ASSERT_TRUE(straight.ok()) << straight.status().ToString();
+
+  // Stop after 30 steps (fine step 10) through the progress callback; a checkpoint is written.
+  TrainerOptions part = full;
+  part.checkpoint_dir = (dir / "ckpt").string();
+  part.log_every = 10;
+  part.progress = [](const TrainProgress& p) { return !(p.phase == "fine" && p.step == 10); };
+  auto b2 = MakeCpuBackend();
+  auto stopped = Train(*data, *b2, part);
+  ASSERT_EQ(stopped.status().code(), StatusCode::kCancelled) << stopped.status().ToString();
+  auto checkpoint = ReadCheckpoint(part.checkpoint_dir);
+  ASSERT_TRUE(checkpoint.ok()) << checkpoint.status().ToString();
+  EXPECT_EQ(checkpoint->trainer.value("phase", ""), "fine");
+  EXPECT_EQ(checkpoint->trainer.value("step", -1), 10);
+
+  TrainerOptions resume = full;
+  resume.resume_dir = part.checkpoint_dir;
+  auto b3 = MakeCpuBackend();
+  auto resumed = Train(*data, *b3, resume);
+  ASSERT_TRUE(resumed.ok()) << resumed.status().ToString();
+  EXPECT_EQ(resumed->asset.gaussians.positions, straight->asset.gaussians.positions);
+  EXPECT_EQ(resumed->asset.gaussians.sh, straight->asset.gaussians.sh);
+  EXPECT_EQ(resumed->asset.deformation->trunk[0].weight, straight->asset.deformation->trunk[0].weight);
+}
+
+// A backend that reports one non-finite step: the loop must roll back and continue.
+class FlakyBackend final : public Backend {
+ public:
+  explicit FlakyBackend(int bad_step) : inner_(MakeCpuBackend()), bad_step_(bad_step) {}
+  std::string name() const override { return "flaky"; }
+  Status Load(const ModelState& s) override {
+    ++loads_;
+    return inner_->Load(s);
+  }
+  Status Save(ModelState* s) override { return inner_->Save(s); }
+  Status ReadGaussians(Gaussians* g) override { return inner_->ReadGaussians(g); }
+  StatusOr<StepResult> Step(const StepRequest& r, std::span<const TrainView> v) override {
+    if (steps_++ == bad_step_) {
+      StepResult bad;
+      bad.loss = std::numeric_limits<double>::quiet_NaN();
+      bad.finite = false;
+      return bad;
+    }
+    last_position_lr_ = r.learning_rates[kGroupPositions];
+    return inner_->Step(r, v);
+  }
+  Status ReadGradients(ModelState* g) override { return inner_->ReadGradients(g); }
+  Status ReadStats(int k, TrainingStats* s) override { return inner_->ReadStats(k, s); }
+  Status ResetStats(int k) override { return inner_->ResetStats(k); }
+  Status ApplyEdit(const GaussianEdit& e) override { return inner_->ApplyEdit(e); }
+  Status AttachTextures(const TexturePool& l) override { return inner_->AttachTextures(l); }
+  Status ResizeTextures(const TextureResize& r) override { return inner_->ResizeTextures(r); }
+  StatusOr<Image> Render(const Camera& c, const RenderRequest& r) override { return inner_->Render(c, r); }
+  int loads_ = 0;
+  double last_position_lr_ = 0;
+
+ private:
+  std::unique_ptr<Backend> inner_;
+  int bad_step_;
+  int steps_ = 0;
+};
+
+TEST(TrainerLego, NonFiniteStepRollsBackAndHalvesTheLearningRate) {
+  ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  auto data = OpenLego(path);
+  ASSERT_NE(data, nullptr);
+  TrainConfig config = SmallConfig();
+  config.stage1.coarse_iterations = 12;
+  config.stage1.fine_iterations = 0;
+  config.stage1.densify.enabled = false;
+  TrainerOptions options;
+  options.config = config;
+  options.stages = kStage1;
+  FlakyBackend backend(7);
+  auto trained = Train(*data, backend, options);
+  ASSERT_TRUE(trained.ok()) << trained.status().ToString();
+  ASSERT_FALSE(trained->events.empty());
+  bool logged = false;
+  for (const auto& e : trained->events) logged |= e.find("rolled back") != std::string::npos;
+  EXPECT_TRUE(logged);
+  EXPECT_EQ(backend.loads_, 2);  // the initial load and the rollback
+  const double expected = config.stage1.lr.position.At(11) * CameraExtent(data->train_views()) * 0.5;
+  EXPECT_NEAR(backend.last_position_lr_, expected, expected * 1e-9);
+}
+
+}  // namespace
+}  // namespace atex::train

@@ -1,0 +1,125 @@
+// `atex convert IN OUT`: between .ply, .spz, .atex, .exr (texture atlas) and .drc.
+// Thin front end over atex/converters/convert.h.
+#include <cstdio>
+#include <memory>
+
+#include "atex/converters/convert.h"
+#include "cli.h"
+
+namespace {
+
+struct ConvertArgs {
+  std::string input, output;
+  std::string from, to;
+  std::string spz_axes = "opencv";
+  int spz_version = 4;
+  int draco_bits = 16;
+  bool draco_attributes = false;
+  double time = 0;
+  bool has_time = false;
+  std::string base;
+  int atlas_width = 0;
+  std::string codec = "shuffle-zstd";
+  std::string encoding = "f32";
+  int zstd_level = 3;
+  bool frames = false;
+  bool json = false;
+};
+
+atex::StatusOr<atex::Codec> ParseCodec(const std::string& name) {
+  if (name == "raw") return atex::Codec::kRaw;
+  if (name == "zstd") return atex::Codec::kZstd;
+  if (name == "shuffle-zstd") return atex::Codec::kShuffleZstd;
+  if (name == "delta-shuffle-zstd") return atex::Codec::kDeltaShuffleZstd;
+  return atex::MakeError(atex::StatusCode::kInvalidArgument, "unknown --codec '", name,
+                         "' (raw, zstd, shuffle-zstd, delta-shuffle-zstd)");
+}
+
+atex::StatusOr<atex::ScalarEncoding> ParseEncoding(const std::string& name) {
+  if (name == "f32") return atex::ScalarEncoding::kFloat32;
+  if (name == "f16") return atex::ScalarEncoding::kFloat16;
+  if (name == "q16") return atex::ScalarEncoding::kQuant16;
+  if (name == "q8") return atex::ScalarEncoding::kQuant8;
+  return atex::MakeError(atex::StatusCode::kInvalidArgument, "unknown --encoding '", name, "' (f32, f16, q16, q8)");
+}
+
+int RunConvert(const ConvertArgs& a) {
+  atex::ConvertOptions options;
+  if (!a.from.empty()) {
+    auto f = atex::ParseFileFormat(a.from);
+    if (!f.ok()) return atex::cli::Fail("convert", f.status());
+    options.from = *f;
+  }
+  if (!a.to.empty()) {
+    auto f = atex::ParseFileFormat(a.to);
+    if (!f.ok()) return atex::cli::Fail("convert", f.status());
+    options.to = *f;
+  }
+  options.spz_axes = a.spz_axes == "stored" ? atex::SpzAxes::kStored : atex::SpzAxes::kOpenCv;
+  options.spz_version = a.spz_version;
+  options.draco_bits = a.draco_bits;
+  options.draco_attributes = a.draco_attributes;
+  if (a.has_time) options.time = a.time;
+  options.base_asset = a.base;
+  options.atlas_width = a.atlas_width;
+  options.frames = a.frames;
+  auto codec = ParseCodec(a.codec);
+  if (!codec.ok()) return atex::cli::Fail("convert", codec.status());
+  options.atex.codec = *codec;
+  options.atex.zstd_level = a.zstd_level;
+  auto encoding = ParseEncoding(a.encoding);
+  if (!encoding.ok()) return atex::cli::Fail("convert", encoding.status());
+  auto& w = options.atex;
+  w.positions = w.rotations = w.log_scales = w.opacities = w.sh_dc = w.sh_rest = w.texels = w.deformation_grids =
+      *encoding;
+
+  auto report = atex::ConvertFile(a.input, a.output, options);
+  if (!report.ok()) return atex::cli::Fail("convert", report.status());
+  if (a.json) {
+    atex::cli::PrintJson(report->ToJson());
+  } else {
+    std::printf("%s -> %s: %llu Gaussians (SH %d), %llu -> %llu bytes (%.2f bytes/Gaussian), read %.3f s, write %.3f s\n",
+                std::string(atex::FileFormatName(report->from)).c_str(),
+                std::string(atex::FileFormatName(report->to)).c_str(),
+                static_cast<unsigned long long>(report->gaussians), report->sh_degree,
+                static_cast<unsigned long long>(report->input_bytes),
+                static_cast<unsigned long long>(report->output_bytes),
+                report->gaussians ? double(report->output_bytes) / double(report->gaussians) : 0.0,
+                report->read_seconds, report->write_seconds);
+    for (const auto& d : report->dropped) std::printf("  dropped: %s (the output format cannot hold it)\n", d.c_str());
+    for (const auto& n : report->notes) std::printf("  note: %s\n", n.c_str());
+  }
+  return atex::cli::kExitOk;
+}
+
+atex::cli::Runner SetupConvert(CLI::App& app) {
+  auto a = std::make_shared<ConvertArgs>();
+  app.add_option("input", a->input, "Input file (.ply, .spz, .atex, .exr)")->required();
+  app.add_option("output", a->output, "Output file (.ply, .spz, .atex, .exr, .drc)")->required();
+  app.add_option("--from", a->from, "Input format when the extension does not say it")
+      ->check(CLI::IsMember({"ply", "spz", "atex", "exr", "drc"}, CLI::ignore_case));
+  app.add_option("--to", a->to, "Output format when the extension does not say it")
+      ->check(CLI::IsMember({"ply", "spz", "atex", "exr", "drc"}, CLI::ignore_case));
+  app.add_option("--spz-version", a->spz_version, "SPZ version to write")->check(CLI::IsMember({3, 4}));
+  app.add_option("--spz-axes", a->spz_axes,
+                 "opencv: convert SPZ's RUB axes to/from libatex's RDF world; stored: keep the file's axes")
+      ->check(CLI::IsMember({"opencv", "stored"}));
+  app.add_option("--draco-bits", a->draco_bits, "Draco position quantisation bits")->check(CLI::Range(1, 30));
+  app.add_flag("--draco-attributes", a->draco_attributes, "Also store colour, opacity, log-scale and rotation");
+  app.add_option("--time", a->time, "Deform to this scene time for .ply/.spz/.drc output")
+      ->each([a](const std::string&) { a->has_time = true; });
+  app.add_option("--base", a->base, ".exr input: the asset (.atex/.ply/.spz) whose textures the atlas replaces");
+  app.add_option("--atlas-width", a->atlas_width, ".exr output: atlas width in texels (0: square-ish)")
+      ->check(CLI::Range(0, 1 << 20));
+  app.add_option("--codec", a->codec, ".atex output: chunk codec (raw, zstd, shuffle-zstd, delta-shuffle-zstd)");
+  app.add_option("--encoding", a->encoding, ".atex output: every attribute stream as f32, f16, q16 or q8")
+      ->check(CLI::IsMember({"f32", "f16", "q16", "q8"}));
+  app.add_option("--zstd-level", a->zstd_level, ".atex output: zstd level")->check(CLI::Range(1, 22));
+  app.add_flag("--frames", a->frames, "Reserved: per-frame export (not implemented yet)");
+  app.add_flag("--json", a->json, "Print a machine-readable summary");
+  return [a]() { return RunConvert(*a); };
+}
+
+ATEX_REGISTER_COMMAND("convert", "Convert between .ply, .spz, .atex, .exr (texture atlas) and .drc", SetupConvert);
+
+}  // namespace
