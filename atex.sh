@@ -13,9 +13,13 @@ BUILD=${ATEX_BUILD_DIR:-build}
 BUILD_PACKAGES=(build-essential cmake pkg-config libzstd-dev libeigen3-dev libdraco-dev libtinygltf-dev
   nlohmann-json3-dev libopenexr-dev libgtest-dev libcli11-dev libmeshoptimizer-dev libpng-dev libjpeg-dev
   zlib1g-dev libbenchmark-dev)
-# Extra packages for the full test suite: clang for the sanitizer/libFuzzer build, node/npm and chromium for
-# the third-party checks (glTF-Validator, SPZ decoder, Babylon.js in a headless browser), matplotlib for charts.
-TEST_PACKAGES=(clang libclang-rt-14-dev libomp-dev nodejs npm chromium python3-matplotlib python3-numpy)
+# Extra packages for the full test suite: clang for the sanitizer/libFuzzer build, chromium for the
+# third-party checks in a headless browser (Babylon.js), matplotlib (Debian's python3) for the chart tests.
+TEST_PACKAGES=(clang libclang-rt-14-dev libomp-dev chromium python3-matplotlib python3-numpy)
+# Node.js and npm run the glTF-Validator and the SPZ decoder. Many machines already carry a Node.js whose
+# package bundles npm (NodeSource's "nodejs" conflicts with Debian's "npm"), so Debian's are installed only
+# when the commands are missing.
+NODE_PACKAGES=(nodejs npm)
 
 as_root() { if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi; }
 
@@ -43,6 +47,9 @@ case "$verb" in
     ;;
   test)
     install_packages "${BUILD_PACKAGES[@]}" "${TEST_PACKAGES[@]}"
+    if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+      install_packages "${NODE_PACKAGES[@]}"
+    fi
     configure_and_build
     # Third-party checkers from npm (glTF-Validator, Babylon.js + playwright-core, an SPZ decoder), pinned by
     # each folder's package-lock.json.

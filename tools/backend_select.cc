@@ -6,7 +6,7 @@
 
 namespace atex::cli {
 
-StatusOr<SelectedBackend> SelectBackend(const std::string& name) {
+StatusOr<SelectedBackend> SelectBackend(const std::string& name, const BackendChoice& choice) {
   SelectedBackend selected;
   if (name == "cpu") {
     selected.backend = train::MakeCpuBackend();
@@ -19,8 +19,11 @@ StatusOr<SelectedBackend> SelectBackend(const std::string& name) {
 #ifdef ATEX_HAVE_CUDA
   std::string why;
   if (cuda::DeviceAvailable(&why)) {
-    ATEX_ASSIGN_OR_RETURN(selected.backend, cuda::MakeCudaBackend());
-    selected.description = "cuda: " + cuda::DeviceDescription();
+    cuda::CudaBackendOptions options;
+    options.tf32 = choice.tf32;
+    options.profile = choice.profile;
+    ATEX_ASSIGN_OR_RETURN(selected.backend, cuda::MakeCudaBackend(options));
+    selected.description = "cuda: " + cuda::DeviceDescription() + (choice.tf32 ? ", TF32 MLP" : ", FP32 MLP");
     return selected;
   }
   if (name == "cuda") {

@@ -16,6 +16,10 @@ struct SelectedBackend {
   std::string note;         // why "auto" fell back to the CPU, if it did
 };
 
-StatusOr<SelectedBackend> SelectBackend(const std::string& name);
+struct BackendChoice {
+  bool tf32 = true;      // CUDA: TF32 tensor cores for the deformation MLP
+  bool profile = false;  // CUDA: per-stage timing (Backend::Profile)
+};
+StatusOr<SelectedBackend> SelectBackend(const std::string& name, const BackendChoice& choice = {});
 
 }  // namespace atex::cli

@@ -18,7 +18,8 @@ struct TrainArgs {
   std::vector<std::string> overrides;
   int timesteps = 0, downscale = 1, checkpoint_every = -1;
   long long seed = -1;
-  bool json = false, print_config = false;
+  bool json = false, print_config = false, fp32 = false, profile = false;
+  double time_limit = 0;
 };
 
 atex::StatusOr<atex::train::TrainConfig> BuildConfig(const TrainArgs& a, const atex::Dataset* data) {
@@ -99,7 +100,11 @@ int RunTrain(const TrainArgs& a) {
     if (!asset.ok()) return cli::Fail(cmd, asset.status().WithContext(a.init));
     initial = std::move(*asset);
   }
-  auto backend = cli::SelectBackend(a.backend);
+  cli::BackendChoice choice;
+  choice.tf32 = !a.fp32;
+  choice.profile = a.profile;
+  options.time_limit_seconds = a.time_limit;
+  auto backend = cli::SelectBackend(a.backend, choice);
   if (!backend.ok()) return cli::Fail(cmd, backend.status());
   if (!backend->note.empty()) std::cerr << "atex train: " << backend->note << "\n";
   std::cerr << "atex train: " << (*dataset)->name() << ", " << (*dataset)->train_views().size() << " training and "
@@ -132,6 +137,7 @@ int RunTrain(const TrainArgs& a) {
   nlohmann::json report = train::SummaryToJson(*summary);
   report["output"] = a.out;
   report["backend"] = backend->description;
+  if (a.profile) report["profile"] = backend->backend->Profile();
   if (auto bytes = ReadFileBytes(a.out); bytes.ok()) report["model_bytes"] = bytes->size();
   if (a.json) {
     cli::PrintJson(report);
@@ -169,6 +175,10 @@ atex::cli::Runner SetupTrain(CLI::App& app) {
   app.add_option("--downscale", a->downscale, "Integer image downscale factor")->capture_default_str();
   app.add_option("--seed", a->seed, "Random seed (default: the config's, 6666)");
   app.add_flag("--print-config", a->print_config, "Print the default config as JSON and exit");
+  app.add_flag("--fp32", a->fp32, "CUDA: full FP32 for the deformation MLP (default: TF32 tensor cores)");
+  app.add_flag("--profile", a->profile, "CUDA: time each stage of a training step (in the --json report)");
+  app.add_option("--time-limit", a->time_limit,
+                 "Stop after this many seconds of training and write what there is (0 = no limit)");
   app.add_flag("--json", a->json, "Machine-readable report on stdout");
   return [a]() { return RunTrain(*a); };
 }

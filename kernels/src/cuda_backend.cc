@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <list>
+#include <map>
 #include <unordered_map>
 
 #include "deform/deform_cuda.h"
@@ -76,6 +77,8 @@ class CudaBackend final : public Backend {
  public:
   explicit CudaBackend(const CudaBackendOptions& options) : options_(options) {}
   ~CudaBackend() override {
+    if (mark_event_) cudaEventDestroy(mark_event_);
+    if (next_event_) cudaEventDestroy(next_event_);
     deform_.reset();
     render_.reset();
     loss_.reset();
@@ -89,6 +92,7 @@ class CudaBackend final : public Backend {
     ATEX_CUBLAS_RETURN_IF_ERROR(cublasCreate(&cublas_));
     ATEX_CUBLAS_RETURN_IF_ERROR(cublasSetStream(cublas_, stream_));
     deform_ = std::make_unique<DeformEngine>(cublas_, stream_);
+    deform_->set_allow_tf32(options_.tf32);
     render_ = std::make_unique<RenderEngine>(stream_);
     loss_ = std::make_unique<LossEngine>(stream_);
     ATEX_RETURN_IF_ERROR(scalars_.Resize(2 + kMaxBatch));
@@ -212,31 +216,38 @@ class CudaBackend final : public Backend {
     train::StepResult result;
     result.view_psnr.resize(views.size());
 
+    ATEX_RETURN_IF_ERROR(Mark("setup"));
     for (size_t k = 0; k < views.size(); ++k) {
       const Camera& camera = *views[k].camera;
       ATEX_ASSIGN_OR_RETURN(const float* target, Target(views[k]));
+      ATEX_RETURN_IF_ERROR(Mark("targets"));
       const detail::CameraModel<float> cam = detail::MakeCameraModel<float>(camera, request.near_plane);
       RenderInputs inputs;
       RenderGradients grads;
       ATEX_RETURN_IF_ERROR(PrepareView(request, camera.time, textured, &inputs, &grads));
+      ATEX_RETURN_IF_ERROR(Mark("deform_forward"));
       const size_t pixels = size_t(camera.width) * camera.height;
       ATEX_RETURN_IF_ERROR(image_.Resize(pixels * 3));
       ATEX_RETURN_IF_ERROR(image_grad_.Resize(pixels * 3));
       ATEX_RETURN_IF_ERROR(render_->Forward(cam, inputs, image_.data(), nullptr,
                                             request.accumulate_importance ? importance_.data() : nullptr));
+      ATEX_RETURN_IF_ERROR(Mark("render_forward"));
       ATEX_RETURN_IF_ERROR(loss_->Compute(image_.data(), target, camera.width, camera.height,
                                           static_cast<float>(request.lambda_dssim), 1.0f / batch, image_grad_.data(),
                                           scalars_.data(), scalars_.data() + 2 + k));
+      ATEX_RETURN_IF_ERROR(Mark("loss"));
       RenderStats stats;
       const bool with_stats = request.accumulate_densify_stats || (request.accumulate_texture_stats && textured);
       if (with_stats) stats = MakeStats(request, camera, batch, textured);
       ATEX_RETURN_IF_ERROR(
           render_->Backward(cam, inputs, image_grad_.data(), nullptr, grads, with_stats ? &stats : nullptr));
+      ATEX_RETURN_IF_ERROR(Mark("render_backward"));
       if (request.apply_deformation) {
         ATEX_RETURN_IF_ERROR(deform_->Backward(deform_layout_, grid_.value.data(), mlp_.value.data(),
                                                static_cast<int>(count_), sh_coeffs_, static_cast<float>(camera.time),
                                                Canonical(), DeformedGrads(), grid_.grad.data(), mlp_.grad.data(),
                                                CanonicalGrads()));
+        ATEX_RETURN_IF_ERROR(Mark("deform_backward"));
       }
     }
     if (request.apply_deformation &&
@@ -261,8 +272,11 @@ class CudaBackend final : public Backend {
     }
     result.finite = flag[0] == 0 && std::isfinite(result.loss);
     if (!result.finite) return result;  // no update: the trainer rolls back
+    ATEX_RETURN_IF_ERROR(Mark("regularizer_and_checks"));
     ATEX_RETURN_IF_ERROR(ApplyAdam(request, textured));
+    ATEX_RETURN_IF_ERROR(Mark("adam"));
     ATEX_RETURN_IF_ERROR(TrackMemory());
+    if (options_.profile) ++profiled_steps_;
     return result;
   }
 
@@ -463,6 +477,19 @@ class CudaBackend final : public Backend {
   }
 
   uint64_t PeakMemoryBytes() const override { return peak_memory_; }
+
+  nlohmann::json Profile() const override {
+    nlohmann::json j = nlohmann::json::object();
+    if (!options_.profile) return j;
+    double total = 0;
+    for (const auto& [stage, ms] : profile_ms_) {
+      j[stage + "_ms"] = ms;
+      total += ms;
+    }
+    j["total_ms"] = total;
+    j["steps"] = profiled_steps_;
+    return j;
+  }
 
   // See TimeRender in cuda_backend.h.
   StatusOr<RenderTiming> Time(const Camera& camera, const train::RenderRequest& request, int repeats, int warmup) {
@@ -718,6 +745,23 @@ class CudaBackend final : public Backend {
     return static_cast<const float*>(entry.first.data());
   }
 
+  // Profiling: elapsed device time since the previous mark, added to `stage`.
+  Status Mark(const char* stage) {
+    if (!options_.profile) return Status::Ok();
+    if (!mark_event_) {
+      ATEX_CUDA_RETURN_IF_ERROR(cudaEventCreate(&mark_event_));
+      ATEX_CUDA_RETURN_IF_ERROR(cudaEventCreate(&next_event_));
+      ATEX_CUDA_RETURN_IF_ERROR(cudaEventRecord(mark_event_, stream_));
+    }
+    ATEX_CUDA_RETURN_IF_ERROR(cudaEventRecord(next_event_, stream_));
+    ATEX_CUDA_RETURN_IF_ERROR(cudaEventSynchronize(next_event_));
+    float ms = 0;
+    ATEX_CUDA_RETURN_IF_ERROR(cudaEventElapsedTime(&ms, mark_event_, next_event_));
+    profile_ms_[stage] += ms;
+    std::swap(mark_event_, next_event_);
+    return Status::Ok();
+  }
+
   Status TrackMemory() {
     size_t free_bytes = 0, total_bytes = 0;
     ATEX_CUDA_RETURN_IF_ERROR(cudaMemGetInfo(&free_bytes, &total_bytes));
@@ -761,6 +805,10 @@ class CudaBackend final : public Backend {
   std::list<uint64_t> lru_;
   size_t target_bytes_ = 0;
   uint64_t peak_memory_ = 0;
+  // Profiling (options_.profile).
+  cudaEvent_t mark_event_ = nullptr, next_event_ = nullptr;
+  std::map<std::string, double> profile_ms_;
+  int64_t profiled_steps_ = 0;
 };
 
 }  // namespace

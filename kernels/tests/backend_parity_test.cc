@@ -107,7 +107,9 @@ train::StepRequest Request() {
 TEST(BackendParity, StepsStatisticsEditsAndGrowthMatchTheCpuBackend) {
   ATEX_REQUIRE_CUDA_DEVICE();
   Scene scene = MakeScene(7);
-  auto gpu_or = MakeCudaBackend();
+  CudaBackendOptions fp32;
+  fp32.tf32 = false;  // parity is measured in FP32
+  auto gpu_or = MakeCudaBackend(fp32);
   ASSERT_TRUE(gpu_or.ok()) << gpu_or.status().ToString();
   std::unique_ptr<train::Backend> gpu = std::move(*gpu_or);
   std::unique_ptr<train::Backend> cpu = train::MakeCpuBackend();

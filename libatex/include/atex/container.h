@@ -35,7 +35,11 @@ enum class ScalarEncoding : uint8_t {
 };
 
 struct WriteOptions {
-  Codec codec = Codec::kShuffleZstd;  // for every chunk that does not name its own
+  // Codec of the attribute streams. kDeltaShuffleZstd applies delta to quantised
+  // streams only (float streams get kShuffleZstd); META, GHDR, TLAY and DCFG get
+  // kZstd under any compressing codec. kDraco is not allowed here: see
+  // draco_positions.
+  Codec codec = Codec::kShuffleZstd;
   int zstd_level = 3;
   ScalarEncoding positions = ScalarEncoding::kFloat32;
   ScalarEncoding rotations = ScalarEncoding::kFloat32;
@@ -67,6 +71,7 @@ struct ReadOptions {
 // value that does not fit the chosen encoding (f16 overflow), kInvalidArgument for
 // options out of range (zstd level, Draco bits), kUnsupportedCodec for Draco in a
 // build without it. The result's size is exactly what the file will take.
+// Large assets are encoded chunk-parallel (OpenMP); the bytes do not depend on it.
 StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOptions& options = {});
 
 // Decodes and checks a whole file (every structural rule, every CRC, every value;

@@ -44,7 +44,8 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(LearningRates, position, sh_dc, 
                                                 mlp, grid, texels)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(DensifyConfig, enabled, from_step, until_step, interval,
                                                 grad_threshold, percent_dense, min_opacity, opacity_reset_interval,
-                                                max_screen_radius, max_gaussians)
+                                                opacity_reset_in_fine, max_screen_radius, max_world_scale_fraction,
+                                                max_gaussians)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RegularizerConfig, plane_tv, time_smoothness, time_l1)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Stage1Config, coarse_iterations, fine_iterations, batch_size,
                                                 lambda_dssim, sh_degree, sh_increase_interval, lr, densify,

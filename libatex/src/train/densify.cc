@@ -44,9 +44,11 @@ StatusOr<GaussianEdit> PlanDensification(const Gaussians& canonical, const Densi
   }
   auto prune = [&](size_t i) {
     if (Sigmoid(canonical.opacity_logits[i]) < config.min_opacity) return true;
-    if (prune_screen_size && config.max_screen_radius > 0) {
-      if (stats.max_radius[i] > config.max_screen_radius) return true;
-      if (MaxScale(canonical, i) > 0.1 * extent) return true;
+    if (prune_screen_size) {
+      if (config.max_screen_radius > 0 && stats.max_radius[i] > config.max_screen_radius) return true;
+      if (config.max_world_scale_fraction > 0 && MaxScale(canonical, i) > config.max_world_scale_fraction * extent) {
+        return true;
+      }
     }
     return false;
   };

@@ -60,6 +60,7 @@ nlohmann::json SummaryToJson(const TrainSummary& s) {
       {"densifications", s.densifications.size()},
       {"growth", growth},
       {"events", s.events},
+      {"stopped_by_time_limit", s.stopped_by_time_limit},
       {"peak_memory_bytes", s.peak_memory_bytes},
   };
   if (!s.test.views.empty()) j["test"] = EvalToJson(s.test);

@@ -124,7 +124,9 @@ class Loop {
     }
 
     const std::vector<Phase> phases = PhasesToRun(start_phase);
+    run_start_ = Clock::now();
     for (Phase phase : phases) {
+      if (summary_.stopped_by_time_limit) break;
       const int first = phase == start_phase ? start_step : 0;
       if (phase == Phase::kTextures && first == 0) ATEX_RETURN_IF_ERROR(AttachTextures());
       ATEX_RETURN_IF_ERROR(RunPhase(phase, first));
@@ -334,6 +336,16 @@ class Loop {
           (step + 1) % config_.checkpoint_every == 0 && !last) {
         ATEX_RETURN_IF_ERROR(SaveCheckpoint(phase, step + 1));
       }
+      if (options_.time_limit_seconds > 0 && Seconds(run_start_) > options_.time_limit_seconds && !last) {
+        summary_.stopped_by_time_limit = true;
+        Event(StrCat("time limit of ", options_.time_limit_seconds, " s reached at ", PhaseName(phase), " step ",
+                     step + 1, " of ", total, ": stopping early"));
+        const double seconds = Seconds(start);
+        if (phase == Phase::kCoarse) summary_.coarse_seconds += seconds, summary_.coarse_steps += step + 1 - first_step;
+        if (phase == Phase::kFine) summary_.fine_seconds += seconds, summary_.fine_steps += step + 1 - first_step;
+        if (phase == Phase::kTextures) summary_.textures_seconds += seconds, summary_.texture_steps += step + 1 - first_step;
+        return Status::Ok();
+      }
       if (config_.eval_every > 0 && (step + 1) % config_.eval_every == 0 && !last && !data_.test_views().empty()) {
         ATEX_ASSIGN_OR_RETURN(EvalResult eval, Evaluate(data_, backend_, data_.test_views(), EvalRequest(phase)));
         Event(StrCat(PhaseName(phase), " step ", step + 1, ": test PSNR ", eval.mean.psnr, " SSIM ", eval.mean.ssim));
@@ -373,17 +385,31 @@ class Loop {
       return Status::Ok();
     }
     const DensifyConfig& d = config_.stage1.densify;
-    if (!d.enabled || done <= d.from_step || done >= d.until_step || done % d.interval != 0) return Status::Ok();
-    TrainingStats stats;
-    ATEX_RETURN_IF_ERROR(backend_.ReadStats(kStatsDensify, &stats));
-    Gaussians canonical;
-    ATEX_RETURN_IF_ERROR(backend_.ReadGaussians(&canonical));
-    const bool after_reset = d.opacity_reset_interval > 0 && done > d.opacity_reset_interval;
+    if (!d.enabled) return Status::Ok();
+    const bool reset_here = d.opacity_reset_interval > 0 && done % d.opacity_reset_interval == 0 &&
+                            (phase == Phase::kCoarse || d.opacity_reset_in_fine);
+    const bool densify_here = done > d.from_step && done < d.until_step && done % d.interval == 0;
+    if (!densify_here && !reset_here) return Status::Ok();
+    GaussianEdit edit;
     DensifyReport report;
-    ATEX_ASSIGN_OR_RETURN(GaussianEdit edit, PlanDensification(canonical, stats.densify, d, extent_, after_reset,
-                                                               config_.seed + total_steps_, &report));
-    if (d.opacity_reset_interval > 0 && done % d.opacity_reset_interval == 0) {
-      edit.cap_opacity_logit = std::log(0.01f / 0.99f);  // 3DGS: opacity capped at 0.01
+    if (densify_here) {
+      TrainingStats stats;
+      ATEX_RETURN_IF_ERROR(backend_.ReadStats(kStatsDensify, &stats));
+      Gaussians canonical;
+      ATEX_RETURN_IF_ERROR(backend_.ReadGaussians(&canonical));
+      // Size pruning starts once the stage is past one opacity-reset interval (4DGaussians).
+      const bool prune_size = d.opacity_reset_interval > 0 && done > d.opacity_reset_interval;
+      ATEX_ASSIGN_OR_RETURN(edit, PlanDensification(canonical, stats.densify, d, extent_, prune_size,
+                                                    config_.seed + total_steps_, &report));
+    } else {
+      Gaussians canonical;
+      ATEX_RETURN_IF_ERROR(backend_.ReadGaussians(&canonical));
+      edit = PlanPrune(canonical, {});  // keep everyone; only the opacity reset below
+      report.before = report.after = canonical.size();
+    }
+    if (reset_here) {
+      edit.cap_opacity_logit = std::log(0.01f / 0.99f);  // 3DGS/4DGaussians: opacity capped at 0.01
+      Event(StrCat(PhaseName(phase), " step ", done, ": opacity reset"));
     }
     ATEX_RETURN_IF_ERROR(backend_.ApplyEdit(edit));
     summary_.densifications.push_back(report);
@@ -485,6 +511,7 @@ class Loop {
   TrainSummary summary_;
   double extent_ = 1.0;
   double lr_scale_ = 1.0;
+  Clock::time_point run_start_ = Clock::now();
   int64_t total_steps_ = 0;  // steps over all phases: drives the camera schedule
   uint64_t texel_budget_ = 0;
 };

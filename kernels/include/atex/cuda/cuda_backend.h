@@ -18,6 +18,13 @@ std::string DeviceDescription();
 struct CudaBackendOptions {
   int device = 0;
   train::AdamSettings adam;
+  // TF32 tensor cores for the deformation MLP's GEMMs (10-bit mantissa products,
+  // FP32 accumulation): several times faster; training tolerates it. Parity tests
+  // use FP32 (tf32 = false) to compare with the CPU reference at 1e-4.
+  bool tf32 = true;
+  // Time every stage of Step with CUDA events (one synchronisation per stage);
+  // the totals come back from Backend::Profile().
+  bool profile = false;
 };
 
 // Fails with kNoDevice (and a hint to use the CPU backend for tiny scenes) when no GPU is usable.

@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "atex/camera.h"
 #include "atex/image.h"
 #include "atex/model.h"
@@ -152,6 +154,11 @@ class Backend {
 
   virtual StatusOr<StepResult> Step(const StepRequest& request, std::span<const TrainView> views) = 0;
 
+  // Gradients of the last Step, shaped like the parameters: out->gaussians,
+  // out->textures->texels and out->deformation hold dL/d(parameter); the moments are
+  // left empty. For tests (backend parity) and gradient analysis.
+  virtual Status ReadGradients(ModelState* out) = 0;
+
   virtual Status ReadStats(int kinds, TrainingStats* stats) = 0;
   virtual Status ResetStats(int kinds) = 0;
 
@@ -165,6 +172,9 @@ class Backend {
 
   // Peak device memory in bytes since creation (0 if not tracked).
   virtual uint64_t PeakMemoryBytes() const { return 0; }
+  // Time spent per stage when the backend was created with profiling on
+  // ({"deform_forward_ms": ..., ...}); an empty object otherwise.
+  virtual nlohmann::json Profile() const { return nlohmann::json::object(); }
 };
 
 // The CPU reference backend (libatex/src/train/cpu_backend.cc).

@@ -17,7 +17,8 @@ struct DensifyReport {
 
 // Clone small Gaussians whose mean projected-centre gradient reaches the threshold,
 // split large ones into two (positions drawn from the Gaussian, scales / 1.6), prune
-// those below the opacity threshold (and, when set, with too large a screen radius).
+// those below the opacity threshold and, when `prune_screen_size` is set, those whose
+// screen radius or world size exceeds the config's limits.
 // New Gaussians get zero Adam moments; parents of a split are removed. `seed` makes the
 // split positions deterministic. `extent` is the scene extent (3DGS's cameras_extent).
 StatusOr<GaussianEdit> PlanDensification(const Gaussians& canonical, const DensifyStats& stats,

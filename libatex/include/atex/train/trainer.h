@@ -46,6 +46,9 @@ struct TrainerOptions {
   int log_every = 10;          // progress/CSV interval in steps
   ProgressCallback progress;
   int rank = 0, world_size = 1;  // data parallelism (the backend sums across ranks)
+  // Stop training after this many seconds (0 = no limit): the current phase ends, later
+  // phases are skipped, and the asset is written as usual with an event saying so.
+  double time_limit_seconds = 0;
 };
 
 struct ViewMetrics {
@@ -65,6 +68,7 @@ struct TrainSummary {
   std::vector<DensifyReport> densifications;
   std::vector<GrowthReport> growths;
   std::vector<std::string> events;  // rollbacks and other notes, in order
+  bool stopped_by_time_limit = false;
   EvalResult test;                  // test views at the end (empty when the dataset has none)
   uint64_t peak_memory_bytes = 0;
 };

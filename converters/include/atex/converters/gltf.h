@@ -1,0 +1,122 @@
+// glTF 2.0 export and import of AdaTex4D assets.
+//
+// What is written (format_spec/extensions/README.md has the whole picture):
+//   * One mesh with one POINTS primitive carrying the Khronos KHR_gaussian_splatting
+//     attributes: POSITION (float, with min/max), KHR_gaussian_splatting:ROTATION (unit
+//     quaternion x y z w), :SCALE (linear, exp of our log-scale), :OPACITY (sigmoid of our
+//     logit), :SH_DEGREE_l_COEF_n (raw SH coefficients, DC included; colour = SH + 0.5),
+//     plus COLOR_0 (RGBA8 from the DC term and opacity) for point-cloud fallback.
+//     kernel "ellipse", colorSpace "srgb_rec709_display". Any player that knows the
+//     Khronos extension shows the (canonical, or --time baked) static scene.
+//   * Our two extensions nested in the KHR_gaussian_splatting object, listed in
+//     extensionsUsed and never in extensionsRequired:
+//       ATEX_gaussian_textures     the packed per-Gaussian texture planes
+//       ATEX_gaussian_deformation  the raw training parameters and the HexPlane + MLP field
+//   * The asset metadata as JSON in the root `extras.atex`.
+//   * The world is converted to glTF's +Y up by the rotation of the single node that holds
+//     the mesh (the data itself is untouched, so import is bit-exact). The rotation
+//     follows metadata.axes (see GltfUpAxisFor) unless the caller overrides it.
+//   * Optional EXT_meshopt_compression (when the build has meshoptimizer): every
+//     bufferView is compressed; rotations become normalized int16 with the QUATERNION
+//     filter, other floats use the EXPONENTIAL filter (lossy) or none (lossless).
+//     The uncompressed data is not stored: the fallback buffer has no URI, so
+//     EXT_meshopt_compression is listed in extensionsRequired (as its spec demands).
+//
+// Import (needs tinygltf, ATEX_HAVE_TINYGLTF) reads our files back without loss in
+// float mode (positions, raw rotations, log-scales, logits, SH, textures, field and
+// metadata bit for bit) and reads other people's KHR_gaussian_splatting files (base
+// attributes only; node transforms baked into the data). Input is hostile: every index,
+// offset, stride and count is checked against the bytes present before use.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "atex/model.h"
+#include "atex/status.h"
+
+namespace atex {
+
+// Progress of a long operation: fraction in [0, 1]. Return false to cancel (kCancelled).
+using GltfProgress = std::function<bool(double fraction)>;
+
+// Which world direction is "up" in the asset, for the conversion to glTF's +Y up.
+enum class UpAxis : uint8_t { kPosY, kNegY, kPosZ, kNegZ };
+
+// Up axis implied by metadata.axes: "opencv" (the datasets' camera-style world, y down)
+// -> kNegY; "blender" / "z_up" -> kPosZ; "gltf" / "opengl" / "y_up" -> kPosY. Unknown
+// names give kInvalidArgument (pass an explicit override instead).
+StatusOr<UpAxis> GltfUpAxisFor(const std::string& axes);
+// Parses "+y", "-y", "+z", "-z" (command-line override).
+StatusOr<UpAxis> ParseUpAxis(const std::string& text);
+// The unit quaternion (x, y, z, w) that rotates an asset with this up axis to +Y up:
+// identity for kPosY, 180 degrees about x for kNegY, -90 / +90 degrees about x for
+// kPosZ / kNegZ. Right-handedness is kept (these are proper rotations).
+std::array<double, 4> GltfRootRotation(UpAxis up);
+
+// Deforms the canonical Gaussians to `time` (the scene's time units). The command line
+// passes libatex's deformation forward pass; tests pass analytic motion.
+using DeformFn = std::function<Status(const Asset& asset, double time, Gaussians* deformed)>;
+
+struct GltfExportOptions {
+  // Bake the deformation at this time into the base attributes (needs `deform` and an
+  // asset with a deformation field). The deformation extension is then omitted.
+  std::optional<double> time;
+  DeformFn deform;
+
+  bool textures = true;        // write ATEX_gaussian_textures when the asset has textures
+  bool deformation = true;     // write the field of ATEX_gaussian_deformation when present
+  bool raw_parameters = true;  // write ATEX_gaussian_deformation's raw attributes (bit-exact import)
+  bool color_fallback = true;  // write COLOR_0
+  std::optional<UpAxis> up;    // override metadata.axes
+
+  // EXT_meshopt_compression (kUnsupported when the build lacks meshoptimizer).
+  bool meshopt = false;
+  // Mantissa bits of the EXPONENTIAL filter for positions, scales, opacities, SH and the
+  // extension payloads (1..23); 0 keeps those bits exact (filter NONE).
+  int meshopt_float_bits = 0;
+  int meshopt_rotation_bits = 16;  // QUATERNION filter bits (4..16)
+
+  GltfProgress progress;
+};
+
+// A text glTF and the one binary buffer it references (by `bin_uri`).
+struct GltfTextFiles {
+  std::string json;
+  std::vector<uint8_t> bin;
+};
+
+// Binary glTF (.glb) bytes. Errors: kInvalidArgument (inconsistent or empty asset, time
+// without deformation or deform function), kOutOfRange (NaN/Inf, naming array and
+// element), kUnsupported (meshopt without meshoptimizer), kCancelled.
+StatusOr<std::vector<uint8_t>> EncodeGlb(const Asset& asset, const GltfExportOptions& options = {});
+// Text glTF + buffer; the JSON names the buffer `bin_uri` (a relative file name).
+StatusOr<GltfTextFiles> EncodeGltfText(const Asset& asset, const std::string& bin_uri,
+                                       const GltfExportOptions& options = {});
+// Writes `path` by extension: ".glb", or ".gltf" plus "<stem>.bin" beside it. Both
+// files are written atomically (the .bin first).
+Status WriteGltfFile(const std::string& path, const Asset& asset, const GltfExportOptions& options = {});
+
+struct GltfImportOptions {
+  uint64_t max_decoded_bytes = uint64_t{16} << 30;  // refuse files that expand beyond this
+  uint64_t max_gaussians = uint64_t{1} << 28;
+  GltfProgress progress;
+};
+
+// Reads .glb or .gltf (external buffers resolved next to the file, never outside its
+// folder). Errors: kNotFound/kIoError (files), kBadMagic (neither GLB nor JSON),
+// kTruncated, kCorrupt (bad indices, offsets, strides, counts; the message names the
+// JSON path, e.g. "accessors[3]"), kOutOfRange (NaN/Inf or values outside their range),
+// kLimitExceeded, kUnsupported (no tinygltf in this build, sparse accessors, no
+// KHR_gaussian_splatting primitive, non-uniform node scale).
+StatusOr<Asset> ReadGltfFile(const std::string& path, const GltfImportOptions& options = {});
+// From memory. A .gltf that references external files cannot be read this way
+// (kUnsupported); data: URIs and GLB's binary chunk can.
+StatusOr<Asset> DecodeGltf(const uint8_t* data, size_t size, const GltfImportOptions& options = {});
+
+}  // namespace atex

@@ -1,0 +1,683 @@
+// glTF -> Asset. NormalizeGltf resolves buffers and meshopt; tinygltf parses the
+// document; this file turns KHR_gaussian_splatting primitives (and our extensions)
+// back into the model of atex/model.h.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+#include "atex/converters/gltf.h"
+#include "atex/deform.h"
+#include "atex/file_io.h"
+#include "gltf/gltf_container.h"
+#include "gltf/gltf_json_util.h"
+#include "gltf/gltf_names.h"
+
+#ifdef ATEX_HAVE_TINYGLTF
+#include "gltf/tinygltf_config.h"
+
+#include "gltf/gltf_accessors.h"
+#include "gltf/sh_rotation.h"
+#endif
+
+namespace atex {
+
+#ifdef ATEX_HAVE_TINYGLTF
+namespace {
+
+using nlohmann::json;
+using Mat4 = std::array<double, 16>;  // column-major, as glTF's node.matrix
+
+constexpr Mat4 kIdentity = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+
+Mat4 Multiply(const Mat4& a, const Mat4& b) {
+  Mat4 out{};
+  for (int c = 0; c < 4; ++c) {
+    for (int r = 0; r < 4; ++r) {
+      double s = 0;
+      for (int k = 0; k < 4; ++k) s += a[k * 4 + r] * b[c * 4 + k];
+      out[c * 4 + r] = s;
+    }
+  }
+  return out;
+}
+
+StatusOr<Mat4> NodeMatrix(const tinygltf::Node& node, size_t index) {
+  const std::string where = StrCat("nodes[", index, "]");
+  for (const auto* v : {&node.matrix, &node.translation, &node.rotation, &node.scale}) {
+    for (double x : *v) {
+      if (!std::isfinite(x)) return MakeError(StatusCode::kOutOfRange, where, " has a non-finite transform value");
+    }
+  }
+  if (node.matrix.size() == 16) {
+    Mat4 m;
+    std::copy(node.matrix.begin(), node.matrix.end(), m.begin());
+    return m;
+  }
+  if (!node.matrix.empty()) return MakeError(StatusCode::kCorrupt, where, ".matrix has ", node.matrix.size(), " values");
+  double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1};
+  if (!node.translation.empty()) {
+    if (node.translation.size() != 3) return MakeError(StatusCode::kCorrupt, where, ".translation is not 3 numbers");
+    std::copy(node.translation.begin(), node.translation.end(), t);
+  }
+  if (!node.rotation.empty()) {
+    if (node.rotation.size() != 4) return MakeError(StatusCode::kCorrupt, where, ".rotation is not 4 numbers");
+    std::copy(node.rotation.begin(), node.rotation.end(), q);
+    const double n = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (!(n > 0)) return MakeError(StatusCode::kCorrupt, where, ".rotation is a zero quaternion");
+    for (double& x : q) x /= n;
+  }
+  if (!node.scale.empty()) {
+    if (node.scale.size() != 3) return MakeError(StatusCode::kCorrupt, where, ".scale is not 3 numbers");
+    std::copy(node.scale.begin(), node.scale.end(), s);
+  }
+  const double x = q[0], y = q[1], z = q[2], w = q[3];
+  const double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                       2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                       2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)};  // row-major
+  Mat4 m{};
+  for (int c = 0; c < 3; ++c) {
+    for (int row = 0; row < 3; ++row) m[c * 4 + row] = r[row * 3 + c] * s[c];
+  }
+  m[12] = t[0], m[13] = t[1], m[14] = t[2], m[15] = 1;
+  return m;
+}
+
+// One KHR_gaussian_splatting primitive and where it sits in the scene.
+struct SplatPrimitive {
+  size_t mesh = 0, primitive = 0;
+  Mat4 world = kIdentity;
+};
+
+// Every splat primitive reachable from the default scene (or from all root nodes when
+// the file has no scene), with its node's world transform. Cycles and shared subtrees
+// are refused (glTF requires nodes to form disjoint trees).
+StatusOr<std::vector<SplatPrimitive>> FindSplatPrimitives(const tinygltf::Model& model, const json& doc) {
+  auto is_splat = [&](size_t mesh, size_t primitive) {
+    const json* p = nullptr;
+    try {
+      p = &doc.at("meshes").at(mesh).at("primitives").at(primitive);
+    } catch (...) {
+      return false;
+    }
+    auto e = p->find("extensions");
+    return e != p->end() && e->is_object() && e->contains(gltf::kKhrGaussianSplatting);
+  };
+  std::vector<int> roots;
+  if (!model.scenes.empty()) {
+    int scene = model.defaultScene >= 0 ? model.defaultScene : 0;
+    if (size_t(scene) >= model.scenes.size()) return MakeError(StatusCode::kCorrupt, "'scene' ", scene, " does not exist");
+    roots = model.scenes[size_t(scene)].nodes;
+  } else {
+    std::vector<bool> is_child(model.nodes.size(), false);
+    for (const auto& n : model.nodes) {
+      for (int c : n.children) {
+        if (c >= 0 && size_t(c) < model.nodes.size()) is_child[size_t(c)] = true;
+      }
+    }
+    for (size_t i = 0; i < model.nodes.size(); ++i) {
+      if (!is_child[i]) roots.push_back(int(i));
+    }
+  }
+  std::vector<SplatPrimitive> found;
+  std::vector<bool> visited(model.nodes.size(), false);
+  std::vector<std::pair<int, Mat4>> stack;
+  for (auto it = roots.rbegin(); it != roots.rend(); ++it) stack.push_back({*it, kIdentity});
+  while (!stack.empty()) {
+    auto [index, parent] = stack.back();
+    stack.pop_back();
+    if (index < 0 || size_t(index) >= model.nodes.size()) return MakeError(StatusCode::kCorrupt, "node index ", index, " does not exist");
+    if (visited[size_t(index)]) return MakeError(StatusCode::kCorrupt, "nodes[", index, "] is reached twice (cycle or shared node)");
+    visited[size_t(index)] = true;
+    const tinygltf::Node& node = model.nodes[size_t(index)];
+    ATEX_ASSIGN_OR_RETURN(Mat4 local, NodeMatrix(node, size_t(index)));
+    const Mat4 world = Multiply(parent, local);
+    if (node.mesh >= 0) {
+      if (size_t(node.mesh) >= model.meshes.size()) return MakeError(StatusCode::kCorrupt, "nodes[", index, "].mesh ", node.mesh, " does not exist");
+      const auto& mesh = model.meshes[size_t(node.mesh)];
+      for (size_t p = 0; p < mesh.primitives.size(); ++p) {
+        if (is_splat(size_t(node.mesh), p)) found.push_back({size_t(node.mesh), p, world});
+      }
+    }
+    for (auto c = node.children.rbegin(); c != node.children.rend(); ++c) stack.push_back({*c, world});
+  }
+  return found;
+}
+
+// Reads attribute `name` of a primitive as floats, checking its shape.
+Status ReadAttribute(const tinygltf::Model& model, const tinygltf::Primitive& primitive, const std::string& name,
+                     int components, std::initializer_list<int> types, size_t count, std::vector<float>* out,
+                     bool* present = nullptr) {
+  auto it = primitive.attributes.find(name);
+  if (it == primitive.attributes.end()) {
+    if (present != nullptr) {
+      *present = false;
+      return Status::Ok();
+    }
+    return MakeError(StatusCode::kCorrupt, "splat primitive lacks attribute ", name);
+  }
+  if (present != nullptr) *present = true;
+  const std::string where = "attribute " + name;
+  ATEX_ASSIGN_OR_RETURN(gltf::AccessorData a, gltf::ResolveAccessor(model, it->second, where));
+  ATEX_RETURN_IF_ERROR(gltf::CheckAccessor(a, components, types, count, where));
+  return gltf::ReadFloats(a, where, out);
+}
+
+const std::initializer_list<int> kFloatOnly = {gltf::kComponentFloat};
+const std::initializer_list<int> kRotationTypes = {gltf::kComponentFloat, gltf::kComponentByte, gltf::kComponentShort};
+const std::initializer_list<int> kScaleTypes = {gltf::kComponentFloat, gltf::kComponentByte, gltf::kComponentShort};
+const std::initializer_list<int> kOpacityTypes = {gltf::kComponentFloat, gltf::kComponentUnsignedByte,
+                                                  gltf::kComponentUnsignedShort};
+
+// The base attributes of one primitive, converted to our raw parameters.
+StatusOr<Gaussians> ReadBase(const tinygltf::Model& model, const tinygltf::Primitive& primitive,
+                             const GltfImportOptions& options) {
+  if (primitive.mode != gltf::kModePoints) {
+    return MakeError(StatusCode::kCorrupt, "splat primitive has mode ", primitive.mode, ", KHR_gaussian_splatting needs POINTS (0)");
+  }
+  Gaussians g;
+  std::vector<float> positions;
+  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrPosition, 3,
+                                     {gltf::kComponentFloat, gltf::kComponentByte, gltf::kComponentUnsignedByte,
+                                      gltf::kComponentShort, gltf::kComponentUnsignedShort},
+                                     0, &positions));
+  const size_t n = positions.size() / 3;
+  if (n > options.max_gaussians) return MakeError(StatusCode::kLimitExceeded, n, " Gaussians exceed the limit of ", options.max_gaussians);
+  g.positions = std::move(positions);
+
+  std::vector<float> xyzw, scales, opacities;
+  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrRotation, 4, kRotationTypes, n, &xyzw));
+  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrScale, 3, kScaleTypes, n, &scales));
+  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrOpacity, 1, kOpacityTypes, n, &opacities));
+  g.rotations.resize(n * 4);
+  for (size_t i = 0; i < n; ++i) {
+    g.rotations[i * 4 + 0] = xyzw[i * 4 + 3];
+    g.rotations[i * 4 + 1] = xyzw[i * 4 + 0];
+    g.rotations[i * 4 + 2] = xyzw[i * 4 + 1];
+    g.rotations[i * 4 + 3] = xyzw[i * 4 + 2];
+  }
+  g.log_scales.resize(n * 3);
+  for (size_t i = 0; i < n * 3; ++i) {
+    if (!(scales[i] >= 0)) {
+      return MakeError(StatusCode::kOutOfRange, "attribute ", gltf::kAttrScale, " element ", i / 3, " component ", i % 3, " is ",
+                       scales[i], " (scales must be positive)");
+    }
+    // A zero scale (flat splats of some tools) becomes the smallest normal float's log.
+    g.log_scales[i] = float(std::log(std::max(double(scales[i]), double(std::numeric_limits<float>::min()))));
+  }
+  g.opacity_logits.resize(n);
+  constexpr double kEps = 1e-7;  // opacity 0 or 1 has an infinite logit: clamp to a finite one
+  for (size_t i = 0; i < n; ++i) {
+    if (!(opacities[i] >= 0 && opacities[i] <= 1)) {
+      return MakeError(StatusCode::kOutOfRange, "attribute ", gltf::kAttrOpacity, " element ", i, " is ", opacities[i],
+                       " (outside [0, 1])");
+    }
+    const double o = std::clamp(double(opacities[i]), kEps, 1 - kEps);
+    g.opacity_logits[i] = float(std::log(o / (1 - o)));
+  }
+
+  // SH: degree 0 is required; higher degrees only when complete (the extension forbids partial degrees).
+  int degree = -1;
+  for (int l = 0; l <= kMaxShDegree; ++l) {
+    bool complete = true, any = false;
+    for (int c = 0; c <= 2 * l; ++c) {
+      const bool has = primitive.attributes.count(gltf::ShAttribute(l, c)) != 0;
+      complete = complete && has;
+      any = any || has;
+    }
+    if (complete) {
+      degree = l;
+    } else {
+      if (any) return MakeError(StatusCode::kCorrupt, "SH degree ", l, " is only partially present");
+      break;
+    }
+  }
+  if (degree < 0) {
+    return MakeError(StatusCode::kUnsupported, "splat primitive has no ", gltf::ShAttribute(0, 0),
+                     " (other lighting methods are not supported)");
+  }
+  g.sh_degree = degree;
+  const size_t k_count = size_t(g.sh_coeffs());
+  g.sh.resize(n * k_count * 3);
+  std::vector<float> coef;
+  for (int l = 0; l <= degree; ++l) {
+    for (int c = 0; c <= 2 * l; ++c) {
+      ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::ShAttribute(l, c), 3, kFloatOnly, n, &coef));
+      const size_t k = size_t(l * l + c);
+      for (size_t i = 0; i < n; ++i) {
+        for (int ch = 0; ch < 3; ++ch) g.sh[(i * k_count + k) * 3 + ch] = coef[i * 3 + ch];
+      }
+    }
+  }
+  return g;
+}
+
+// Bakes a node transform (rotation + uniform scale + translation) into the Gaussians.
+Status BakeTransform(const Mat4& m, Gaussians& g) {
+  if (m == kIdentity) return Status::Ok();
+  double col[3][3];
+  double scale[3];
+  for (int c = 0; c < 3; ++c) {
+    for (int r = 0; r < 3; ++r) col[c][r] = m[c * 4 + r];
+    scale[c] = std::sqrt(col[c][0] * col[c][0] + col[c][1] * col[c][1] + col[c][2] * col[c][2]);
+  }
+  if (m[3] != 0 || m[7] != 0 || m[11] != 0 || m[15] != 1) {
+    return MakeError(StatusCode::kUnsupported, "node transform is projective");
+  }
+  const double s = scale[0];
+  if (!(s > 0) || std::abs(scale[1] - s) > 1e-6 * s || std::abs(scale[2] - s) > 1e-6 * s) {
+    return MakeError(StatusCode::kUnsupported, "node transform has a non-uniform or zero scale (", scale[0], ", ", scale[1], ", ",
+                     scale[2], ")");
+  }
+  std::array<double, 9> r;  // row-major rotation
+  for (int row = 0; row < 3; ++row) {
+    for (int c = 0; c < 3; ++c) r[row * 3 + c] = col[c][row] / s;
+  }
+  const double det = r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6]) + r[2] * (r[3] * r[7] - r[4] * r[6]);
+  if (det < 0) return MakeError(StatusCode::kUnsupported, "node transform mirrors (negative determinant)");
+  // Rotation matrix -> quaternion (w, x, y, z).
+  double qw, qx, qy, qz;
+  const double trace = r[0] + r[4] + r[8];
+  if (trace > 0) {
+    const double k = 0.5 / std::sqrt(trace + 1.0);
+    qw = 0.25 / k, qx = (r[7] - r[5]) * k, qy = (r[2] - r[6]) * k, qz = (r[3] - r[1]) * k;
+  } else if (r[0] > r[4] && r[0] > r[8]) {
+    const double k = 2.0 * std::sqrt(1.0 + r[0] - r[4] - r[8]);
+    qw = (r[7] - r[5]) / k, qx = 0.25 * k, qy = (r[1] + r[3]) / k, qz = (r[2] + r[6]) / k;
+  } else if (r[4] > r[8]) {
+    const double k = 2.0 * std::sqrt(1.0 + r[4] - r[0] - r[8]);
+    qw = (r[2] - r[6]) / k, qx = (r[1] + r[3]) / k, qy = 0.25 * k, qz = (r[5] + r[7]) / k;
+  } else {
+    const double k = 2.0 * std::sqrt(1.0 + r[8] - r[0] - r[4]);
+    qw = (r[3] - r[1]) / k, qx = (r[2] + r[6]) / k, qy = (r[5] + r[7]) / k, qz = 0.25 * k;
+  }
+  const double log_s = std::log(s);
+  const gltf::ShRotation sh_rotation = gltf::MakeShRotation(r, g.sh_degree);
+  const size_t n = g.size(), k_count = size_t(g.sh_coeffs());
+  for (size_t i = 0; i < n; ++i) {
+    float* p = &g.positions[i * 3];
+    const double x = p[0], y = p[1], z = p[2];
+    for (int row = 0; row < 3; ++row) p[row] = float(m[row] * x + m[4 + row] * y + m[8 + row] * z + m[12 + row]);
+    float* q = &g.rotations[i * 4];  // (w, x, y, z): q' = q_node * q
+    const double w = q[0], a = q[1], b = q[2], c = q[3];
+    q[0] = float(qw * w - qx * a - qy * b - qz * c);
+    q[1] = float(qw * a + qx * w + qy * c - qz * b);
+    q[2] = float(qw * b - qx * c + qy * w + qz * a);
+    q[3] = float(qw * c + qx * b - qy * a + qz * w);
+    for (int k = 0; k < 3; ++k) g.log_scales[i * 3 + k] = float(g.log_scales[i * 3 + k] + log_s);
+    gltf::RotateSh(sh_rotation, g.sh_degree, &g.sh[i * k_count * 3]);
+  }
+  return Status::Ok();
+}
+
+// Appends `b` to `a` (SH degree: the larger; missing coefficients are zero).
+void AppendGaussians(Gaussians& a, const Gaussians& b) {
+  if (a.size() == 0) {
+    a = b;
+    return;
+  }
+  const int degree = std::max(a.sh_degree, b.sh_degree);
+  auto widen = [degree](const Gaussians& g) {
+    if (g.sh_degree == degree) return g.sh;
+    const size_t n = g.size(), from = size_t(g.sh_coeffs()), to = size_t(ShCoeffCount(degree));
+    std::vector<float> sh(n * to * 3, 0.0f);
+    for (size_t i = 0; i < n; ++i) std::copy_n(&g.sh[i * from * 3], from * 3, &sh[i * to * 3]);
+    return sh;
+  };
+  std::vector<float> sh = widen(a);
+  const std::vector<float> sh_b = widen(b);
+  sh.insert(sh.end(), sh_b.begin(), sh_b.end());
+  a.sh = std::move(sh);
+  a.sh_degree = degree;
+  a.positions.insert(a.positions.end(), b.positions.begin(), b.positions.end());
+  a.rotations.insert(a.rotations.end(), b.rotations.begin(), b.rotations.end());
+  a.log_scales.insert(a.log_scales.end(), b.log_scales.begin(), b.log_scales.end());
+  a.opacity_logits.insert(a.opacity_logits.end(), b.opacity_logits.begin(), b.opacity_logits.end());
+}
+
+StatusOr<TexturePool> ReadTextures(const tinygltf::Model& model, const tinygltf::Primitive& primitive, const json& ext,
+                                   size_t n) {
+  const std::string where = gltf::kAtexTextures;
+  if (!ext.is_object()) return MakeError(StatusCode::kCorrupt, where, " is not an object");
+  auto it = primitive.attributes.find(gltf::kAttrTextureLayout);
+  if (it == primitive.attributes.end()) return MakeError(StatusCode::kCorrupt, where, ": attribute ", gltf::kAttrTextureLayout, " is missing");
+  ATEX_ASSIGN_OR_RETURN(gltf::AccessorData layout_accessor, gltf::ResolveAccessor(model, it->second, gltf::kAttrTextureLayout));
+  ATEX_RETURN_IF_ERROR(gltf::CheckAccessor(layout_accessor, 4, {gltf::kComponentUnsignedByte}, n, gltf::kAttrTextureLayout));
+  std::vector<uint8_t> layout;
+  ATEX_RETURN_IF_ERROR(gltf::ReadBytes(layout_accessor, gltf::kAttrTextureLayout, &layout));
+  TexturePool t;
+  t.heights.resize(n), t.widths.resize(n), t.axis_u.resize(n), t.axis_v.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    t.heights[i] = layout[i * 4 + 0];
+    t.widths[i] = layout[i * 4 + 1];
+    t.axis_u[i] = layout[i * 4 + 2];
+    t.axis_v[i] = layout[i * 4 + 3];
+    auto side_ok = [](uint8_t s) { return s == 1 || s == 2 || s == 4; };
+    if (!side_ok(t.heights[i]) || !side_ok(t.widths[i]) || t.axis_u[i] > 2 || t.axis_v[i] > 2 || t.axis_u[i] == t.axis_v[i]) {
+      return MakeError(StatusCode::kOutOfRange, gltf::kAttrTextureLayout, " element ", i, " = (", int(t.heights[i]), ", ",
+                       int(t.widths[i]), ", ", int(t.axis_u[i]), ", ", int(t.axis_v[i]), ") is not a valid texture layout");
+    }
+  }
+  t.RebuildOffsets();
+  uint64_t texels_index = 0;
+  ATEX_RETURN_IF_ERROR(gltf::ReadIndex(ext, "texels", model.accessors.size(), where, &texels_index));
+  ATEX_ASSIGN_OR_RETURN(gltf::AccessorData texels, gltf::ResolveAccessor(model, int64_t(texels_index), where + ".texels"));
+  ATEX_RETURN_IF_ERROR(gltf::CheckAccessor(texels, 4, kFloatOnly, t.texel_count(), where + ".texels"));
+  ATEX_RETURN_IF_ERROR(gltf::ReadFloats(texels, where + ".texels", &t.texels));
+  return t;
+}
+
+Status ReadFloatArray(const tinygltf::Model& model, const json& object, const char* key, size_t expected,
+                      const std::string& where, std::vector<float>* out) {
+  uint64_t index = 0;
+  ATEX_RETURN_IF_ERROR(gltf::ReadIndex(object, key, model.accessors.size(), where, &index));
+  const std::string name = where + "." + key;
+  ATEX_ASSIGN_OR_RETURN(gltf::AccessorData a, gltf::ResolveAccessor(model, int64_t(index), name));
+  ATEX_RETURN_IF_ERROR(gltf::CheckAccessor(a, 1, kFloatOnly, expected, name));
+  return gltf::ReadFloats(a, name, out);
+}
+
+Status ReadLinear(const tinygltf::Model& model, const json& layer, int in, int out, const std::string& where, Linear* l) {
+  if (!layer.is_object()) return MakeError(StatusCode::kCorrupt, where, " is not an object");
+  l->in = in;
+  l->out = out;
+  ATEX_RETURN_IF_ERROR(ReadFloatArray(model, layer, "weight", size_t(in) * size_t(out), where, &l->weight));
+  return ReadFloatArray(model, layer, "bias", size_t(out), where, &l->bias);
+}
+
+StatusOr<DeformationField> ReadField(const tinygltf::Model& model, const json& f) {
+  const std::string where = std::string(gltf::kAtexDeformation) + ".field";
+  if (!f.is_object()) return MakeError(StatusCode::kCorrupt, where, " is not an object");
+  DeformationField field;
+  DeformationConfig& c = field.config;
+  auto need = [&](const json& o, const char* key, const std::string& w) -> StatusOr<const json*> {
+    auto it = o.find(key);
+    if (it == o.end()) return MakeError(StatusCode::kCorrupt, w, ": missing '", key, "'");
+    return &*it;
+  };
+  auto read_vec3 = [&](const char* key, std::array<float, 3>* out) -> Status {
+    ATEX_ASSIGN_OR_RETURN(const json* v, need(f, key, where));
+    if (!v->is_array() || v->size() != 3) return MakeError(StatusCode::kCorrupt, where, ".", key, " is not 3 numbers");
+    for (size_t i = 0; i < 3; ++i) ATEX_RETURN_IF_ERROR(gltf::ReadFloatValue((*v)[i], StrCat(where, ".", key, "[", i, "]"), &(*out)[i]));
+    return Status::Ok();
+  };
+  ATEX_RETURN_IF_ERROR(read_vec3("aabbLo", &c.aabb_lo));
+  ATEX_RETURN_IF_ERROR(read_vec3("aabbHi", &c.aabb_hi));
+  ATEX_ASSIGN_OR_RETURN(const json* ts, need(f, "timeScale", where));
+  ATEX_RETURN_IF_ERROR(gltf::ReadFloatValue(*ts, where + ".timeScale", &c.time_scale));
+  ATEX_ASSIGN_OR_RETURN(const json* to, need(f, "timeOffset", where));
+  ATEX_RETURN_IF_ERROR(gltf::ReadFloatValue(*to, where + ".timeOffset", &c.time_offset));
+  constexpr int64_t kMaxDim = 1 << 16;
+  int64_t v = 0;
+  ATEX_ASSIGN_OR_RETURN(const json* width, need(f, "mlpWidth", where));
+  ATEX_RETURN_IF_ERROR(gltf::ReadIntValue(*width, where + ".mlpWidth", 1, kMaxDim, &v));
+  c.mlp_width = int(v);
+  ATEX_ASSIGN_OR_RETURN(const json* shk, need(f, "shCoefficients", where));
+  ATEX_RETURN_IF_ERROR(gltf::ReadIntValue(*shk, where + ".shCoefficients", 1, ShCoeffCount(kMaxShDegree), &v));
+  c.sh_coeffs = int(v);
+
+  ATEX_ASSIGN_OR_RETURN(const json* grid, need(f, "grid", where));
+  if (!grid->is_object()) return MakeError(StatusCode::kCorrupt, where, ".grid is not an object");
+  const std::string gw = where + ".grid";
+  ATEX_ASSIGN_OR_RETURN(const json* channels, need(*grid, "channels", gw));
+  ATEX_RETURN_IF_ERROR(gltf::ReadIntValue(*channels, gw + ".channels", 1, kMaxDim, &v));
+  c.grid.channels = int(v);
+  ATEX_ASSIGN_OR_RETURN(const json* base, need(*grid, "baseResolution", gw));
+  if (!base->is_array() || base->size() != 4) return MakeError(StatusCode::kCorrupt, gw, ".baseResolution is not 4 integers");
+  for (size_t i = 0; i < 4; ++i) {
+    ATEX_RETURN_IF_ERROR(gltf::ReadIntValue((*base)[i], StrCat(gw, ".baseResolution[", i, "]"), 1, kMaxDim, &v));
+    c.grid.base_resolution[i] = int(v);
+  }
+  ATEX_ASSIGN_OR_RETURN(const json* multires, need(*grid, "multires", gw));
+  if (!multires->is_array() || multires->empty() || multires->size() > 8) {
+    return MakeError(StatusCode::kCorrupt, gw, ".multires is not an array of 1..8 integers");
+  }
+  c.grid.multires.clear();
+  for (size_t i = 0; i < multires->size(); ++i) {
+    ATEX_RETURN_IF_ERROR(gltf::ReadIntValue((*multires)[i], StrCat(gw, ".multires[", i, "]"), 1, kMaxDim, &v));
+    c.grid.multires.push_back(int(v));
+  }
+  ATEX_ASSIGN_OR_RETURN(const json* trunk, need(f, "trunk", where));
+  if (!trunk->is_array() || trunk->empty() || trunk->size() > 64) return MakeError(StatusCode::kCorrupt, where, ".trunk is not an array of 1..64 layers");
+  c.trunk_layers = int(trunk->size());
+  ATEX_ASSIGN_OR_RETURN(const json* heads, need(f, "heads", where));
+  if (!heads->is_object()) return MakeError(StatusCode::kCorrupt, where, ".heads is not an object");
+  for (int h = 0; h < kNumDeformHeads; ++h) c.heads[h] = heads->contains(gltf::kHeadNames[h]);
+  for (auto it = heads->begin(); it != heads->end(); ++it) {
+    if (std::find(std::begin(gltf::kHeadNames), std::end(gltf::kHeadNames), it.key()) == std::end(gltf::kHeadNames)) {
+      return MakeError(StatusCode::kCorrupt, where, ".heads has unknown head '", it.key(), "'");
+    }
+  }
+  // Sizes are checked before anything is read (and accessors are bounded by the bytes present).
+  ATEX_RETURN_IF_ERROR(CheckDeformationConfig(c));
+
+  ATEX_ASSIGN_OR_RETURN(const json* planes, need(*grid, "planes", gw));
+  if (!planes->is_array() || planes->size() != c.grid.multires.size()) {
+    return MakeError(StatusCode::kCorrupt, gw, ".planes needs one entry per multires scale (", c.grid.multires.size(), ")");
+  }
+  field.planes.resize(c.grid.multires.size());
+  for (size_t s = 0; s < planes->size(); ++s) {
+    const json& scale = (*planes)[s];
+    if (!scale.is_array() || scale.size() != size_t(kNumHexPlanes)) {
+      return MakeError(StatusCode::kCorrupt, gw, ".planes[", s, "] is not 6 accessor indices");
+    }
+    for (int p = 0; p < kNumHexPlanes; ++p) {
+      const auto [a, b] = kHexPlaneAxes[size_t(p)];
+      const size_t size = size_t(c.grid.channels) * size_t(c.grid.resolution(int(s), b)) * size_t(c.grid.resolution(int(s), a));
+      json holder = {{"plane", scale[size_t(p)]}};
+      ATEX_RETURN_IF_ERROR(ReadFloatArray(model, holder, "plane", size, StrCat(gw, ".planes[", s, "][", p, "]"), &field.planes[s][size_t(p)]));
+    }
+  }
+  const int feat = c.grid.feature_dim(), w = c.mlp_width;
+  field.trunk.resize(trunk->size());
+  for (size_t l = 0; l < trunk->size(); ++l) {
+    ATEX_RETURN_IF_ERROR(ReadLinear(model, (*trunk)[l], l == 0 ? feat : w, w, StrCat(where, ".trunk[", l, "]"), &field.trunk[l]));
+  }
+  for (int h = 0; h < kNumDeformHeads; ++h) {
+    if (!c.heads[h]) continue;
+    const json& layers = heads->at(gltf::kHeadNames[h]);
+    const std::string hw = StrCat(where, ".heads.", gltf::kHeadNames[h]);
+    if (!layers.is_array() || layers.size() != 2) return MakeError(StatusCode::kCorrupt, hw, " is not 2 layers");
+    ATEX_RETURN_IF_ERROR(ReadLinear(model, layers[0], w, w, hw + "[0]", &field.heads[h][0]));
+    ATEX_RETURN_IF_ERROR(ReadLinear(model, layers[1], w, c.head_outputs(h), hw + "[1]", &field.heads[h][1]));
+  }
+  ATEX_RETURN_IF_ERROR(CheckDeformationField(field));
+  return field;
+}
+
+// Replaces the base-derived parameters by the bit-exact raw ones when present.
+Status ReadRawParameters(const tinygltf::Model& model, const tinygltf::Primitive& primitive, Gaussians& g) {
+  const size_t n = g.size();
+  std::vector<float> raw;
+  bool present = false;
+  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrRawRotation, 4, kFloatOnly, n, &raw, &present));
+  if (present) {
+    for (size_t i = 0; i < n; ++i) {
+      g.rotations[i * 4 + 0] = raw[i * 4 + 3];
+      g.rotations[i * 4 + 1] = raw[i * 4 + 0];
+      g.rotations[i * 4 + 2] = raw[i * 4 + 1];
+      g.rotations[i * 4 + 3] = raw[i * 4 + 2];
+    }
+  }
+  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrRawLogScale, 3, kFloatOnly, n, &raw, &present));
+  if (present) g.log_scales = raw;
+  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrRawLogit, 1, kFloatOnly, n, &raw, &present));
+  if (present) g.opacity_logits = raw;
+  return Status::Ok();
+}
+
+Metadata ForeignMetadata(const Gaussians& g) {
+  Metadata m;
+  m.axes = "gltf";
+  m.texture_mode = "none";
+  if (g.size() > 0) {
+    for (int k = 0; k < 3; ++k) {
+      m.bounds_min[k] = std::numeric_limits<float>::infinity();
+      m.bounds_max[k] = -std::numeric_limits<float>::infinity();
+    }
+    for (size_t i = 0; i < g.size(); ++i) {
+      for (int k = 0; k < 3; ++k) {
+        m.bounds_min[k] = std::min(m.bounds_min[k], g.positions[i * 3 + k]);
+        m.bounds_max[k] = std::max(m.bounds_max[k], g.positions[i * 3 + k]);
+      }
+    }
+  }
+  m.extra = {{"imported_from", "glTF KHR_gaussian_splatting"}};
+  return m;
+}
+
+const json* FindPath(const json& root, std::initializer_list<const char*> keys) {
+  const json* cur = &root;
+  for (const char* k : keys) {
+    if (!cur->is_object()) return nullptr;
+    auto it = cur->find(k);
+    if (it == cur->end()) return nullptr;
+    cur = &*it;
+  }
+  return cur;
+}
+
+StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, const GltfImportOptions& options) {
+  ATEX_ASSIGN_OR_RETURN(std::vector<SplatPrimitive> splats, FindSplatPrimitives(model, doc));
+  if (splats.empty()) return MakeError(StatusCode::kUnsupported, "no KHR_gaussian_splatting primitive in the default scene");
+  const json* atex = FindPath(doc, {"extras", "atex"});
+  Asset asset;
+  if (atex == nullptr) {
+    // Someone else's file: base attributes of every splat primitive, transforms baked in.
+    for (size_t i = 0; i < splats.size(); ++i) {
+      const auto& sp = splats[i];
+      const tinygltf::Primitive& primitive = model.meshes[sp.mesh].primitives[sp.primitive];
+      auto g = ReadBase(model, primitive, options);
+      if (!g.ok()) return g.status().WithContext(StrCat("meshes[", sp.mesh, "].primitives[", sp.primitive, "]"));
+      ATEX_RETURN_IF_ERROR(BakeTransform(sp.world, *g));
+      if (asset.gaussians.size() + g->size() > options.max_gaussians) {
+        return MakeError(StatusCode::kLimitExceeded, "more than ", options.max_gaussians, " Gaussians");
+      }
+      AppendGaussians(asset.gaussians, *g);
+      if (options.progress && !options.progress(0.5 + 0.5 * double(i + 1) / double(splats.size()))) {
+        return MakeError(StatusCode::kCancelled, "glTF import cancelled");
+      }
+    }
+    asset.metadata = ForeignMetadata(asset.gaussians);
+    ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
+    return asset;
+  }
+
+  // Ours: one primitive, data in asset coordinates (the node only turns it upright).
+  if (!atex->is_object()) return MakeError(StatusCode::kCorrupt, "extras.atex is not an object");
+  if (splats.size() != 1) return MakeError(StatusCode::kCorrupt, "an atex glTF has one splat primitive, this one has ", splats.size());
+  int64_t version = 0;
+  if (auto v = atex->find("version"); v == atex->end() || !gltf::ReadIntValue(*v, "extras.atex.version", 1, INT32_MAX, &version).ok()) {
+    return MakeError(StatusCode::kCorrupt, "extras.atex.version is missing or invalid");
+  }
+  if (version > gltf::kAtexGltfVersion) {
+    return MakeError(StatusCode::kUnsupportedVersion, "extras.atex.version ", version, " is newer than this reader (", gltf::kAtexGltfVersion, ")");
+  }
+  const auto& sp = splats[0];
+  const tinygltf::Primitive& primitive = model.meshes[sp.mesh].primitives[sp.primitive];
+  ATEX_ASSIGN_OR_RETURN(asset.gaussians, ReadBase(model, primitive, options));
+  const json& khr = doc["meshes"][sp.mesh]["primitives"][sp.primitive]["extensions"][gltf::kKhrGaussianSplatting];
+  if (!khr.is_object()) return MakeError(StatusCode::kCorrupt, gltf::kKhrGaussianSplatting, " is not an object");
+  const json* sub = FindPath(khr, {"extensions"});
+  const json* deformation = sub ? FindPath(*sub, {gltf::kAtexDeformation}) : nullptr;
+  const json* textures = sub ? FindPath(*sub, {gltf::kAtexTextures}) : nullptr;
+  if (deformation != nullptr) {
+    if (!deformation->is_object()) return MakeError(StatusCode::kCorrupt, gltf::kAtexDeformation, " is not an object");
+    ATEX_RETURN_IF_ERROR(ReadRawParameters(model, primitive, asset.gaussians));
+    if (auto f = deformation->find("field"); f != deformation->end()) {
+      ATEX_ASSIGN_OR_RETURN(DeformationField field, ReadField(model, *f));
+      asset.deformation = std::move(field);
+    }
+  }
+  if (textures != nullptr) {
+    ATEX_ASSIGN_OR_RETURN(TexturePool pool, ReadTextures(model, primitive, *textures, asset.gaussians.size()));
+    asset.textures = std::move(pool);
+  }
+  const json* metadata = FindPath(*atex, {"metadata"});
+  if (metadata == nullptr) return MakeError(StatusCode::kCorrupt, "extras.atex.metadata is missing");
+  auto md = MetadataFromJson(*metadata);
+  if (!md.ok()) return md.status().WithContext("extras.atex.metadata");
+  asset.metadata = std::move(md).value();
+  ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
+  return asset;
+}
+
+bool NoImageLoading(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*) {
+  return true;  // splat data has no images; never decode hostile image bytes
+}
+bool DenyFileExists(const std::string&, void*) { return false; }
+std::string DenyExpand(const std::string& path, void*) { return path; }
+bool DenyRead(std::vector<unsigned char>*, std::string* err, const std::string& path, void*) {
+  if (err) *err += "external file access is disabled: " + path;
+  return false;
+}
+bool DenyWrite(std::string* err, const std::string& path, const std::vector<unsigned char>&, void*) {
+  if (err) *err += "file writing is disabled: " + path;
+  return false;
+}
+
+StatusOr<Asset> DecodeWithLoader(const uint8_t* data, size_t size, const gltf::UriLoader& loader,
+                                 const GltfImportOptions& options) {
+  ATEX_ASSIGN_OR_RETURN(gltf::NormalizedGltf normalized, gltf::NormalizeGltf(data, size, loader, options));
+  if (options.progress && !options.progress(0.3)) return MakeError(StatusCode::kCancelled, "glTF import cancelled");
+  std::vector<uint8_t> glb = std::move(normalized.glb);
+  tinygltf::TinyGLTF parser;
+  parser.SetImageLoader(NoImageLoading, nullptr);
+  parser.SetFsCallbacks({DenyFileExists, DenyExpand, DenyRead, DenyWrite, nullptr});
+  tinygltf::Model model;
+  std::string err, warn;
+  if (!parser.LoadBinaryFromMemory(&model, &err, &warn, glb.data(), static_cast<unsigned int>(glb.size()), "")) {
+    return MakeError(StatusCode::kCorrupt, "glTF document: ", err.empty() ? "tinygltf rejected it" : err);
+  }
+  std::vector<uint8_t>().swap(glb);  // tinygltf holds its own copy of the buffer
+  return ModelToAsset(model, normalized.doc, options);
+}
+
+}  // namespace
+#endif  // ATEX_HAVE_TINYGLTF
+
+StatusOr<Asset> DecodeGltf(const uint8_t* data, size_t size, const GltfImportOptions& options) {
+#ifdef ATEX_HAVE_TINYGLTF
+  try {
+    return DecodeWithLoader(data, size, {}, options);
+  } catch (const std::bad_alloc&) {
+    return MakeError(StatusCode::kLimitExceeded, "glTF import: out of memory");
+  } catch (const std::exception& e) {
+    return MakeError(StatusCode::kCorrupt, "glTF import: ", e.what());
+  }
+#else
+  (void)data, (void)size, (void)options;
+  return MakeError(StatusCode::kUnsupported, "glTF import needs tinygltf, which this build lacks");
+#endif
+}
+
+StatusOr<Asset> ReadGltfFile(const std::string& path, const GltfImportOptions& options) {
+#ifdef ATEX_HAVE_TINYGLTF
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, ReadFileBytes(path, options.max_decoded_bytes));
+  const std::filesystem::path folder = std::filesystem::path(path).parent_path();
+  gltf::UriLoader loader = [folder](const std::string& uri, uint64_t max_bytes) -> StatusOr<std::vector<uint8_t>> {
+    const std::filesystem::path relative(uri);
+    if (uri.empty() || relative.is_absolute() || uri.find(':') != std::string::npos) {
+      return MakeError(StatusCode::kUnsupported, "buffer URI '", uri, "' is not a relative file name");
+    }
+    for (const auto& part : relative) {
+      if (part == "..") return MakeError(StatusCode::kCorrupt, "buffer URI '", uri, "' leaves the glTF's folder");
+    }
+    return ReadFileBytes((folder / relative).string(), max_bytes);
+  };
+  try {
+    auto asset = DecodeWithLoader(bytes.data(), bytes.size(), loader, options);
+    if (!asset.ok()) return asset.status().WithContext(path);
+    return asset;
+  } catch (const std::bad_alloc&) {
+    return MakeError(StatusCode::kLimitExceeded, path, ": out of memory");
+  } catch (const std::exception& e) {
+    return MakeError(StatusCode::kCorrupt, path, ": ", e.what());
+  }
+#else
+  (void)options;
+  return MakeError(StatusCode::kUnsupported, "glTF import of '", path, "' needs tinygltf, which this build lacks");
+#endif
+}
+
+}  // namespace atex

@@ -1,0 +1,246 @@
+#include "container/attribute_stream.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+
+#include "container/byte_io.h"
+#include "container/format.h"
+#include "container/half.h"
+
+namespace atex::container {
+namespace {
+
+uint32_t QuantMax(ScalarEncoding encoding) { return encoding == ScalarEncoding::kQuant16 ? 65535u : 255u; }
+
+// §6: value = f32(f64(min) + (f64(max) - f64(min)) * (f64(q) / f64(Lmax))), in this order.
+inline float Dequantise(uint32_t q, double lo, double range, double lmax) {
+  return static_cast<float>(lo + range * (static_cast<double>(q) / lmax));
+}
+
+Status NonFinite(const char* what, uint64_t row, uint32_t component, float value) {
+  return MakeError(StatusCode::kOutOfRange, what, " row ", row, " component ", component, " is not finite (", value, ")");
+}
+
+}  // namespace
+
+size_t EncodingBytes(ScalarEncoding encoding) {
+  switch (encoding) {
+    case ScalarEncoding::kFloat32: return 4;
+    case ScalarEncoding::kFloat16: return 2;
+    case ScalarEncoding::kQuant16: return 2;
+    case ScalarEncoding::kQuant8: return 1;
+  }
+  return 0;
+}
+
+bool IsQuantised(ScalarEncoding encoding) {
+  return encoding == ScalarEncoding::kQuant16 || encoding == ScalarEncoding::kQuant8;
+}
+
+uint64_t StreamHeaderBytes(ScalarEncoding encoding, uint32_t components) {
+  return kStreamHeaderSize + (IsQuantised(encoding) ? uint64_t{8} * components : 0);
+}
+
+StatusOr<std::vector<uint8_t>> EncodeStream(const float* values, uint64_t rows, uint32_t components,
+                                            ScalarEncoding encoding, const char* what) {
+  if (components == 0 || components > 0xFFFF) {
+    return MakeError(StatusCode::kInternal, what, ": ", components, " components do not fit a stream header");
+  }
+  if (EncodingBytes(encoding) == 0) {
+    return MakeError(StatusCode::kInvalidArgument, what, ": unknown encoding ", int{static_cast<uint8_t>(encoding)});
+  }
+  const uint64_t count = rows * components;
+  uint32_t bad = 0;  // a branch-free pass; the position only on failure
+  for (uint64_t i = 0; i < count; ++i) bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(values[i]) & 0x7F800000u) == 0x7F800000u);
+  for (uint64_t i = 0; bad && i < count; ++i) {
+    if (!std::isfinite(values[i])) return NonFinite(what, i / components, static_cast<uint32_t>(i % components), values[i]);
+  }
+  const uint64_t header = StreamHeaderBytes(encoding, components);
+  std::vector<uint8_t> out;
+  out.reserve(static_cast<size_t>(header + count * EncodingBytes(encoding)));
+  ByteWriter w(&out);
+  w.Put<uint8_t>(static_cast<uint8_t>(encoding));
+  w.Put<uint8_t>(0);
+  w.Put<uint16_t>(static_cast<uint16_t>(components));
+  w.Put<uint32_t>(0);
+  w.Put<uint64_t>(rows);
+  switch (encoding) {
+    case ScalarEncoding::kFloat32: {
+      out.resize(static_cast<size_t>(header + count * 4));
+      uint8_t* p = out.data() + header;
+      if constexpr (std::endian::native == std::endian::little) {
+        CopyBytes(p, values, static_cast<size_t>(count) * 4);
+      } else {
+        for (uint64_t i = 0; i < count; ++i) StoreLE<float>(p + i * 4, values[i]);
+      }
+      break;
+    }
+    case ScalarEncoding::kFloat16: {
+      out.resize(static_cast<size_t>(header + count * 2));
+      uint8_t* p = out.data() + header;
+      for (uint64_t i = 0; i < count; ++i) {
+        bool overflow = false;
+        const uint16_t h = FloatToHalf(values[i], &overflow);
+        if (overflow) {
+          return MakeError(StatusCode::kOutOfRange, what, " row ", i / components, " component ", i % components, " = ",
+                           values[i], " does not fit float16 (|v| < 65520)");
+        }
+        StoreLE<uint16_t>(p + i * 2, h);
+      }
+      break;
+    }
+    case ScalarEncoding::kQuant16:
+    case ScalarEncoding::kQuant8: {
+      std::vector<float> lo(components, 0.0f), hi(components, 0.0f);  // [C]
+      for (uint32_t c = 0; c < components && rows > 0; ++c) {
+        lo[c] = hi[c] = values[c];
+        for (uint64_t r = 1; r < rows; ++r) {
+          lo[c] = std::min(lo[c], values[r * components + c]);
+          hi[c] = std::max(hi[c], values[r * components + c]);
+        }
+      }
+      for (uint32_t c = 0; c < components; ++c) {
+        w.Put<float>(lo[c]);
+        w.Put<float>(hi[c]);
+      }
+      const uint32_t lmax = QuantMax(encoding);
+      const size_t b = EncodingBytes(encoding);
+      out.resize(static_cast<size_t>(header + count * b));
+      uint8_t* p = out.data() + header;
+      for (uint64_t i = 0; i < count; ++i) {
+        const uint32_t c = static_cast<uint32_t>(i % components);
+        const double range = static_cast<double>(hi[c]) - static_cast<double>(lo[c]);
+        uint32_t q = 0;
+        if (range > 0) {
+          const double t = std::floor((static_cast<double>(values[i]) - static_cast<double>(lo[c])) / range * lmax + 0.5);
+          q = static_cast<uint32_t>(std::clamp(t, 0.0, static_cast<double>(lmax)));
+        }
+        if (b == 2) {
+          StoreLE<uint16_t>(p + i * 2, static_cast<uint16_t>(q));
+        } else {
+          p[i] = static_cast<uint8_t>(q);
+        }
+      }
+      break;
+    }
+  }
+  return out;
+}
+
+StatusOr<StreamInfo> ParseStreamHeader(const uint8_t* raw, size_t size) {
+  if (size < kStreamHeaderSize) {
+    return MakeError(StatusCode::kCorrupt, "stream of ", size, " bytes is shorter than its 16-byte header");
+  }
+  StreamInfo info;
+  const uint8_t encoding = raw[kStreamEncoding];
+  if (encoding > static_cast<uint8_t>(ScalarEncoding::kQuant8)) {
+    return MakeError(StatusCode::kCorrupt, "stream encoding ", int{encoding}, " is unknown (byte 0)");
+  }
+  info.encoding = static_cast<ScalarEncoding>(encoding);
+  if (raw[kStreamReserved8] != 0 || LoadLE<uint32_t>(raw + kStreamReserved32) != 0) {
+    return MakeError(StatusCode::kCorrupt, "stream header reserved bytes are not zero");
+  }
+  info.components = LoadLE<uint16_t>(raw + kStreamComponents);
+  info.rows = LoadLE<uint64_t>(raw + kStreamRows);
+  if (info.components == 0) return MakeError(StatusCode::kCorrupt, "stream has 0 components (byte 2)");
+  info.header_bytes = StreamHeaderBytes(info.encoding, info.components);
+  uint64_t values = 0, value_bytes = 0, expected = 0;
+  if (MulOverflows(info.rows, info.components, &values) || MulOverflows(values, EncodingBytes(info.encoding), &value_bytes) ||
+      AddOverflows(value_bytes, info.header_bytes, &expected) || expected != size) {
+    return MakeError(StatusCode::kCorrupt, "stream of ", info.rows, " rows x ", info.components, " components (encoding ",
+                     int{encoding}, ") does not match its raw size ", size);
+  }
+  return info;
+}
+
+Status DecodeStream(const uint8_t* raw, size_t size, uint32_t expected_components, uint64_t expected_rows,
+                    std::vector<float>* values) {
+  ATEX_ASSIGN_OR_RETURN(const StreamInfo info, ParseStreamHeader(raw, size));
+  if (info.components != expected_components) {
+    return MakeError(StatusCode::kCorrupt, "stream has ", info.components, " components, expected ", expected_components);
+  }
+  if (info.rows != expected_rows) {
+    return MakeError(StatusCode::kCorrupt, "stream has ", info.rows, " rows, expected ", expected_rows);
+  }
+  // rows * components * bytes == size - header: the allocation is backed by data.
+  values->resize(static_cast<size_t>(info.rows * info.components));
+  return DecodeStreamValues(raw, info, values->data(), info.components);
+}
+
+Status CheckFiniteValues(const float* values, uint64_t rows, uint32_t components) {
+  const uint64_t count = rows * components;
+  // Exponent all ones = Inf or NaN: a branch-free pass first (it vectorises), the
+  // position only on failure.
+  uint32_t bad = 0;
+  for (uint64_t i = 0; i < count; ++i) bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(values[i]) & 0x7F800000u) == 0x7F800000u);
+  for (uint64_t i = 0; bad && i < count; ++i) {
+    if (!std::isfinite(values[i])) return NonFinite("stream", i / components, static_cast<uint32_t>(i % components), values[i]);
+  }
+  return Status::Ok();
+}
+
+Status DecodeStreamValues(const uint8_t* raw, const StreamInfo& info, float* out, size_t out_stride) {
+  const size_t rows = static_cast<size_t>(info.rows);
+  const size_t c_count = info.components;
+  const uint8_t* p = raw + info.header_bytes;
+  switch (info.encoding) {
+    case ScalarEncoding::kFloat32: {
+      if (std::endian::native == std::endian::little && out_stride == c_count) {
+        CopyBytes(out, p, rows * c_count * 4);
+      } else {
+        for (size_t r = 0; r < rows; ++r) {
+          for (size_t c = 0; c < c_count; ++c) out[r * out_stride + c] = LoadLE<float>(p + (r * c_count + c) * 4);
+        }
+      }
+      if (out_stride == c_count) return CheckFiniteValues(out, rows, info.components);
+      for (size_t r = 0; r < rows; ++r) {
+        for (size_t c = 0; c < c_count; ++c) {
+          if (!std::isfinite(out[r * out_stride + c])) {
+            return NonFinite("stream", r, static_cast<uint32_t>(c), out[r * out_stride + c]);
+          }
+        }
+      }
+      break;
+    }
+    case ScalarEncoding::kFloat16:
+      for (size_t r = 0; r < rows; ++r) {
+        for (size_t c = 0; c < c_count; ++c) {
+          const uint16_t h = LoadLE<uint16_t>(p + (r * c_count + c) * 2);
+          out[r * out_stride + c] = HalfToFloat(h);
+          if (!IsHalfFinite(h)) return NonFinite("stream", r, static_cast<uint32_t>(c), HalfToFloat(h));
+        }
+      }
+      break;
+    case ScalarEncoding::kQuant16:
+    case ScalarEncoding::kQuant8: {
+      std::vector<double> lo(c_count), range(c_count);  // [C]
+      for (size_t c = 0; c < c_count; ++c) {
+        const float a = LoadLE<float>(raw + kStreamHeaderSize + c * 8);
+        const float b = LoadLE<float>(raw + kStreamHeaderSize + c * 8 + 4);
+        if (!std::isfinite(a) || !std::isfinite(b) || !(a <= b)) {
+          return MakeError(StatusCode::kCorrupt, "stream range of component ", c, " is [", a, ", ", b,
+                           "]; it must be finite with min <= max");
+        }
+        lo[c] = a;
+        range[c] = static_cast<double>(b) - static_cast<double>(a);
+      }
+      const double lmax = QuantMax(info.encoding);
+      if (info.encoding == ScalarEncoding::kQuant16) {
+        for (size_t r = 0; r < rows; ++r) {
+          for (size_t c = 0; c < c_count; ++c) {
+            out[r * out_stride + c] = Dequantise(LoadLE<uint16_t>(p + (r * c_count + c) * 2), lo[c], range[c], lmax);
+          }
+        }
+      } else {
+        for (size_t r = 0; r < rows; ++r) {
+          for (size_t c = 0; c < c_count; ++c) out[r * out_stride + c] = Dequantise(p[r * c_count + c], lo[c], range[c], lmax);
+        }
+      }
+      break;
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace atex::container

@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# `atex export` / `atex import` end to end on the fixture's moving.atex (textures + motion):
+# every glTF form imports back losslessly (re-export is byte-identical), .splatv reports its
+# fit, --frames writes the sequence, bad outputs fail with exit status 1.
+#   tests/web/cli_export.sh ATEX_BINARY FIXTURE_DIR
+set -euo pipefail
+atex=$1
+fixture=$2
+work=$(mktemp -d "${TMPDIR:-/tmp}/atex-cli-XXXXXX")
+trap 'rm -rf "$work"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+ok() { echo "ok   $*"; }
+scene="$fixture/moving.atex"
+[ -f "$scene" ] || fail "$scene is missing (the web_fixture test writes it)"
+
+"$atex" export "$scene" "$work/a.glb" --json > "$work/a.json"
+grep -q '"format": "glb"' "$work/a.json" || fail "export --json summary: $(cat "$work/a.json")"
+"$atex" import "$work/a.glb" "$work/a.atex" > /dev/null
+"$atex" export "$work/a.atex" "$work/b.glb" > /dev/null
+cmp -s "$work/a.glb" "$work/b.glb" || fail ".glb -> .atex -> .glb is not byte-identical"
+ok ".glb import is lossless (re-export byte-identical)"
+
+"$atex" export "$scene" "$work/t.gltf" > /dev/null
+[ -f "$work/t.bin" ] || fail ".gltf export wrote no t.bin"
+"$atex" import "$work/t.gltf" "$work/t.atex" > /dev/null
+"$atex" export "$work/t.atex" "$work/t.glb" > /dev/null
+cmp -s "$work/a.glb" "$work/t.glb" || fail ".gltf + .bin import is not lossless"
+ok ".gltf + .bin import is lossless"
+
+"$atex" export "$scene" "$work/m.glb" --meshopt > /dev/null
+"$atex" import "$work/m.glb" "$work/m.atex" > /dev/null
+"$atex" export "$work/m.atex" "$work/m2.glb" > /dev/null
+cmp -s "$work/a.glb" "$work/m2.glb" || fail "meshopt (exact floats + raw parameters) import is not lossless"
+[ "$(stat -c %s "$work/m.glb")" -lt "$(stat -c %s "$work/a.glb")" ] || fail "meshopt output is not smaller"
+"$atex" export "$scene" "$work/q.glb" --meshopt --meshopt-bits 12 --no-raw > /dev/null
+[ "$(stat -c %s "$work/q.glb")" -lt "$(stat -c %s "$work/m.glb")" ] || fail "lossy meshopt output is not smaller"
+ok "meshopt exports (exact: lossless; 12-bit: smaller)"
+
+"$atex" export "$scene" "$work/s.splatv" --samples 16 --json > "$work/s.json"
+grep -q '"position_rms_relative"' "$work/s.json" || fail ".splatv export reports no fit: $(cat "$work/s.json")"
+ok ".splatv export reports its fit"
+
+"$atex" export "$scene" "$work/frames" --frames 0:1:0.25 > /dev/null
+[ "$(ls "$work/frames"/frame_*.glb | wc -l)" = 5 ] || fail "--frames 0:1:0.25 did not write 5 frames"
+grep -q '"time": 0.75' "$work/frames/frames.json" || fail "frames.json lacks t = 0.75"
+"$atex" export "$scene" "$work/baked.glb" --time 0.5 > /dev/null
+cmp -s "$work/frames/frame_0002.glb" "$work/baked.glb" || fail "frame 2 differs from --time 0.5"
+ok "--frames sequence and --time agree"
+
+if "$atex" export "$scene" "$work/x.unknown" 2> "$work/err.txt"; then fail "unknown output extension accepted"; fi
+grep -q 'does not end\|is not .glb' "$work/err.txt" || fail "unclear error: $(cat "$work/err.txt")"
+if "$atex" import "$scene" "$work/y.atex" 2> /dev/null; then fail "importing a non-glTF file succeeded"; fi
+ok "bad inputs fail with a message"
+echo "all checks passed"

@@ -1,0 +1,27 @@
+# Third-party checks of our exports, run by CTest (installed by tests/web/install.sh):
+#   web_gltf_validator  Khronos glTF-Validator (npm gltf-validator) on every export flavour
+#   web_babylon_render  our .glb in unmodified Babylon.js in headless Chromium, compared with
+#                       libatex's reference renderer (synthetic "F" and real garden points)
+#   web_splatv_reader   our .splatv read by a re-implementation of splaTV's reader and shader
+#   web_cli_export      `atex export` / `atex import` end to end (no node needed)
+# A missing node, npm package or chromium fails these tests when ATEX_REQUIRE_DATA=1 (CI)
+# and skips them (exit code 77) otherwise.
+set(ATEX_WEB_DIR ${CMAKE_CURRENT_LIST_DIR})
+set(ATEX_WEB_OUT ${PROJECT_BINARY_DIR}/web_fixture)
+
+add_executable(atex_web_fixture ${ATEX_WEB_DIR}/web_fixture.cc ${PROJECT_SOURCE_DIR}/converters/src/gltf/gltf_test_scene.cc)
+target_include_directories(atex_web_fixture PRIVATE ${PROJECT_SOURCE_DIR}/converters/src)
+target_link_libraries(atex_web_fixture PRIVATE atex_converters atex atex_build_flags)
+
+add_test(NAME web_fixture COMMAND atex_web_fixture ${ATEX_WEB_OUT})
+set_tests_properties(web_fixture PROPERTIES FIXTURES_SETUP atex_web TIMEOUT 300
+  ENVIRONMENT "ATEX_DATA_DIR_DEFAULT=${ATEX_DATA_DIR}")
+
+add_test(NAME web_cli_export COMMAND bash ${ATEX_WEB_DIR}/cli_export.sh $<TARGET_FILE:atex_cli> ${ATEX_WEB_OUT})
+set_tests_properties(web_cli_export PROPERTIES FIXTURES_REQUIRED atex_web TIMEOUT 300)
+
+foreach(check gltf_validator babylon_render splatv_reader)
+  add_test(NAME web_${check} COMMAND bash ${ATEX_WEB_DIR}/run_node.sh ${ATEX_WEB_DIR}/${check}.mjs ${ATEX_WEB_OUT})
+  set_tests_properties(web_${check} PROPERTIES FIXTURES_REQUIRED atex_web SKIP_RETURN_CODE 77 TIMEOUT 180
+    LABELS web ENVIRONMENT "ATEX_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
+endforeach()

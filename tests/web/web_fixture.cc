@@ -1,0 +1,303 @@
+// Writes the files the third-party checks of tests/web read:
+//   validator/*.glb|.gltf   exports in every flavour, for the Khronos glTF-Validator
+//   letter_f.*              an asymmetric static scene ("F", red/green/blue) with a camera
+//                           given in glTF terms and our reference render of it
+//   garden.*                gsplat's real COLMAP points of Mip-NeRF 360 "garden" as small
+//                           Gaussians, a real camera, and our reference render
+//   motion.splatv + motion_reference.json   baked motion and the deformation it stands for
+// Usage: atex_web_fixture OUT_DIR   (real data from $ATEX_DATA_DIR or the configured default)
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <random>
+#include <string>
+
+#include "atex/container.h"
+#include "atex/converters/gltf.h"
+#include "atex/converters/splatv.h"
+#include "atex/deform.h"
+#include "atex/file_io.h"
+#include "atex/image.h"
+#include "atex/npy.h"
+#include "atex/render.h"
+#include "gltf/gltf_test_scene.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+constexpr double kC0 = 0.28209479177387814;
+
+int Fail(const std::string& what, const atex::Status& s) {
+  std::fprintf(stderr, "atex_web_fixture: %s: %s\n", what.c_str(), s.ToString().c_str());
+  return 1;
+}
+
+atex::Status WriteText(const fs::path& path, const std::string& text) {
+  return atex::WriteFileAtomic(path.string(), text.data(), text.size());
+}
+
+// Renders with libatex's reference rasteriser and writes an 8-bit PNG.
+atex::Status RenderReference(const atex::Asset& asset, const atex::Camera& camera, const fs::path& png) {
+  atex::RenderSettings settings;
+  settings.background = asset.metadata.background;
+  auto out = atex::RenderForward(camera, asset.gaussians, asset.textures ? &*asset.textures : nullptr, settings);
+  if (!out.ok()) return out.status();
+  atex::Image image = atex::RenderedImage(*out);
+  for (float& v : image.pixels) v = std::clamp(v, 0.0f, 1.0f);
+  return atex::WriteImage(png.string(), image);
+}
+
+json CameraJson(const atex::Camera& c) {
+  return {{"width", c.width}, {"height", c.height}, {"fx", c.fx}, {"fy", c.fy}, {"cx", c.cx}, {"cy", c.cy}};
+}
+
+void SetColor(atex::Gaussians& g, size_t i, double r, double gr, double b) {
+  const size_t k = size_t(g.sh_coeffs());
+  g.sh[i * k * 3 + 0] = float((r - 0.5) / kC0);
+  g.sh[i * k * 3 + 1] = float((gr - 0.5) / kC0);
+  g.sh[i * k * 3 + 2] = float((b - 0.5) / kC0);
+}
+
+// The letter F in the z = 0 plane of an OpenCV world (y down: the top bar has y < 0).
+atex::Asset LetterF() {
+  struct Stroke {
+    double x0, y0, x1, y1, r, g, b;
+  };
+  const Stroke strokes[] = {{-0.4, -0.8, -0.4, 0.8, 0.1, 0.2, 0.95},   // stem, blue
+                            {-0.36, -0.8, 0.5, -0.8, 0.95, 0.1, 0.1},  // top bar, red
+                            {-0.36, 0.0, 0.25, 0.0, 0.1, 0.9, 0.15}};  // middle bar, green
+  atex::Asset asset;
+  atex::Gaussians& g = asset.gaussians;
+  g.sh_degree = 0;
+  std::vector<std::array<double, 6>> points;
+  for (const auto& s : strokes) {
+    const double length = std::hypot(s.x1 - s.x0, s.y1 - s.y0);
+    const int steps = int(length / 0.035) + 1;
+    for (int i = 0; i <= steps; ++i) {
+      const double t = double(i) / steps;
+      points.push_back({s.x0 + t * (s.x1 - s.x0), s.y0 + t * (s.y1 - s.y0), s.r, s.g, s.b, 0});
+    }
+  }
+  g.Resize(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    g.positions[i * 3 + 0] = float(points[i][0]);
+    g.positions[i * 3 + 1] = float(points[i][1]);
+    g.positions[i * 3 + 2] = 0.0f;
+    g.rotations[i * 4 + 0] = 1.0f;
+    for (int k = 0; k < 3; ++k) g.log_scales[i * 3 + k] = float(std::log(k == 2 ? 0.01 : 0.03));
+    g.opacity_logits[i] = 3.0f;
+    SetColor(g, i, points[i][2], points[i][3], points[i][4]);
+  }
+  asset.metadata.axes = "opencv";
+  asset.metadata.bounds_min = {-0.5f, -0.9f, -0.1f};
+  asset.metadata.bounds_max = {0.6f, 0.9f, 0.1f};
+  return asset;
+}
+
+// gsplat's garden points (real COLMAP SfM output) as isotropic Gaussians, and its first camera.
+atex::StatusOr<std::pair<atex::Asset, atex::Camera>> Garden(const fs::path& npz) {
+  ATEX_ASSIGN_OR_RETURN(auto arrays, atex::ReadNpzFile(npz.string()));
+  for (const char* key : {"means3d", "colors", "viewmats", "Ks", "width", "height"}) {
+    if (!arrays.count(key)) return atex::MakeError(atex::StatusCode::kNotFound, npz.string(), " lacks ", key);
+  }
+  const std::vector<double> means = arrays["means3d"].ToDouble();
+  const std::vector<double> colors = arrays["colors"].ToDouble();
+  const std::vector<double> view = arrays["viewmats"].ToDouble();
+  const std::vector<double> ks = arrays["Ks"].ToDouble();
+  ATEX_ASSIGN_OR_RETURN(double width, arrays["width"].Scalar("width"));
+  ATEX_ASSIGN_OR_RETURN(double height, arrays["height"].Scalar("height"));
+  const size_t total = means.size() / 3;
+  atex::Camera camera;
+  camera.width = int(width) / 2;  // half resolution keeps the software-GL browser run short
+  camera.height = int(height) / 2;
+  camera.fx = ks[0] / 2, camera.fy = ks[4] / 2, camera.cx = ks[2] / 2, camera.cy = ks[5] / 2;
+  for (int i = 0; i < 16; ++i) camera.world_to_camera[size_t(i)] = view[size_t(i)];
+  // Every third point: 46k Gaussians; scale from the mean spacing inside the central volume.
+  atex::Asset asset;
+  atex::Gaussians& g = asset.gaussians;
+  g.sh_degree = 0;
+  std::vector<size_t> keep;
+  for (size_t i = 0; i < total; i += 3) keep.push_back(i);
+  g.Resize(keep.size());
+  std::vector<double> sorted[3];
+  for (size_t i : keep) {
+    for (int k = 0; k < 3; ++k) sorted[k].push_back(means[i * 3 + k]);
+  }
+  double volume = 1;
+  for (auto& s : sorted) {
+    std::sort(s.begin(), s.end());
+    volume *= s[s.size() * 95 / 100] - s[s.size() * 5 / 100];
+  }
+  const double spacing = std::cbrt(volume / (0.9 * double(keep.size())));
+  for (size_t j = 0; j < keep.size(); ++j) {
+    const size_t i = keep[j];
+    for (int k = 0; k < 3; ++k) {
+      g.positions[j * 3 + size_t(k)] = float(means[i * 3 + size_t(k)]);
+      g.log_scales[j * 3 + size_t(k)] = float(std::log(0.35 * spacing));
+    }
+    g.rotations[j * 4] = 1.0f;
+    g.opacity_logits[j] = 2.0f;
+    SetColor(g, j, colors[i * 3] / 255.0, colors[i * 3 + 1] / 255.0, colors[i * 3 + 2] / 255.0);
+  }
+  asset.metadata.axes = "opencv";  // COLMAP's world: y points down in these captures
+  return std::make_pair(std::move(asset), camera);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: atex_web_fixture OUT_DIR\n");
+    return 2;
+  }
+  const fs::path out(argv[1]);
+  fs::create_directories(out / "validator");
+  json manifest = {{"validator", json::array()}};
+
+  // 1. Every export flavour of a scene with textures and motion (and one of the real PLY).
+  const atex::Asset moving = atex::testing::MakeTestAsset({.count = 2000, .sh_degree = 2, .seed = 5});
+  struct Flavour {
+    const char* name;
+    atex::GltfExportOptions options;
+  };
+  std::vector<Flavour> flavours;
+  flavours.push_back({"plain_extensions.glb", {}});
+  {
+    atex::GltfExportOptions o;
+    o.textures = false, o.deformation = false, o.raw_parameters = false;
+    flavours.push_back({"base_only.glb", o});
+  }
+  {
+    atex::GltfExportOptions o;
+    o.time = 0.5;
+    flavours.push_back({"baked_t0.5.glb", o});
+  }
+  {
+    atex::GltfExportOptions o;
+    o.meshopt = true;
+    flavours.push_back({"meshopt_exact.glb", o});
+  }
+  {
+    atex::GltfExportOptions o;
+    o.meshopt = true, o.meshopt_float_bits = 14, o.raw_parameters = false;
+    flavours.push_back({"meshopt_lossy.glb", o});
+  }
+  flavours.push_back({"text_form.gltf", {}});
+  {
+    atex::Status s = atex::WriteAssetFile((out / "moving.atex").string(), moving);
+    if (!s.ok()) return Fail("moving.atex", s);
+    manifest["atex"] = "moving.atex";
+  }
+  for (const auto& f : flavours) {
+    atex::Status s = atex::WriteGltfFile((out / "validator" / f.name).string(), moving, f.options);
+    if (!s.ok()) return Fail(f.name, s);
+    manifest["validator"].push_back(std::string("validator/") + f.name);
+  }
+
+  // 2. The letter F, seen from +z of the glTF world with +y up (a camera stated in glTF
+  //    terms, independent of the exporter's axis handling) = the OpenCV camera at z = -3.
+  {
+    const atex::Asset f = LetterF();
+    atex::Camera camera;
+    camera.width = 320, camera.height = 240;
+    camera.fx = camera.fy = 260, camera.cx = 160, camera.cy = 120;
+    camera.world_to_camera = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 3, 0, 0, 0, 1};
+    atex::Status s = atex::WriteGltfFile((out / "letter_f.glb").string(), f);
+    atex::GltfExportOptions meshopt;
+    meshopt.meshopt = true, meshopt.meshopt_float_bits = 12, meshopt.raw_parameters = false;
+    if (s.ok()) s = atex::WriteGltfFile((out / "letter_f_meshopt.glb").string(), f, meshopt);
+    if (s.ok()) s = RenderReference(f, camera, out / "letter_f_reference.png");
+    if (!s.ok()) return Fail("letter F", s);
+    json cam = CameraJson(camera);
+    cam["background"] = {0, 0, 0};
+    cam["pose"] = {{"gltf", {{"position", {0, 0, 3}}, {"target", {0, 0, 0}}, {"up", {0, 1, 0}}}}};
+    s = WriteText(out / "letter_f_camera.json", cam.dump(2));
+    if (!s.ok()) return Fail("letter F camera", s);
+    manifest["letter_f"] = {{"glb", "letter_f.glb"}, {"camera", "letter_f_camera.json"}, {"reference", "letter_f_reference.png"}};
+    manifest["letter_f_meshopt"] = {{"glb", "letter_f_meshopt.glb"}, {"camera", "letter_f_camera.json"},
+                                    {"reference", "letter_f_reference.png"}};
+    manifest["validator"].push_back("letter_f_meshopt.glb");
+  }
+
+  // 3. Real data: garden points and camera.
+  const char* data_env = std::getenv("ATEX_DATA_DIR");
+  const char* data_default = std::getenv("ATEX_DATA_DIR_DEFAULT");
+  fs::path data = data_env && *data_env ? fs::path(data_env) : data_default ? fs::path(data_default) : fs::path();
+  const fs::path npz = data / "gsplat_test_garden" / "test_garden.npz";
+  if (fs::exists(npz)) {
+    auto garden = Garden(npz);
+    if (!garden.ok()) return Fail("garden", garden.status());
+    const auto& [asset, camera] = *garden;
+    atex::Status s = atex::WriteGltfFile((out / "garden.glb").string(), asset);
+    if (s.ok()) s = RenderReference(asset, camera, out / "garden_reference.png");
+    if (!s.ok()) return Fail("garden", s);
+    json cam = CameraJson(camera);
+    cam["background"] = {0, 0, 0};
+    cam["pose"] = {{"opencv_world_to_camera", camera.world_to_camera}, {"apply_node_rotation", true}};
+    s = WriteText(out / "garden_camera.json", cam.dump(2));
+    if (!s.ok()) return Fail("garden camera", s);
+    manifest["garden"] = {{"glb", "garden.glb"}, {"camera", "garden_camera.json"}, {"reference", "garden_reference.png"},
+                          {"gaussians", asset.gaussians.size()}};
+  } else {
+    manifest["garden_missing"] = npz.string();
+  }
+
+  // 4. splaTV: the moving scene baked, plus the deformation it approximates at chosen times.
+  {
+    atex::SplatvFitReport report;
+    atex::SplatvOptions options;
+    atex::SplatvCamera view;  // OpenCV camera at z = -6 looking at the scene (+z), y down
+    view.width = 480, view.height = 270, view.fx = view.fy = 220;
+    view.position = {0, 0, -6};
+    options.cameras = {view};
+    options.psnr_times = 3;
+    atex::Status s = atex::WriteSplatvFile((out / "motion.splatv").string(), moving, options, &report);
+    if (!s.ok()) return Fail("splatv", s);
+    json reference = {{"report", report.ToJson()}, {"time_min", moving.metadata.time_min},
+                      {"time_max", moving.metadata.time_max}, {"frames", json::array()}};
+    for (double u : {0.0, 0.25, 0.5, 0.8, 1.0}) {
+      const double t = moving.metadata.time_min + u * (moving.metadata.time_max - moving.metadata.time_min);
+      atex::Gaussians deformed;
+      s = atex::DeformForward(*moving.deformation, moving.gaussians, t, &deformed, nullptr);
+      if (!s.ok()) return Fail("deform", s);
+      reference["frames"].push_back({{"u", u}, {"positions", deformed.positions}});
+    }
+    s = WriteText(out / "motion_reference.json", reference.dump());
+    if (!s.ok()) return Fail("splatv reference", s);
+    // Reference picture at u = 0.5 with that camera: the deformed scene, DC colour only.
+    {
+      atex::Asset at_half;
+      at_half.metadata = moving.metadata;
+      atex::Gaussians deformed;
+      s = atex::DeformForward(*moving.deformation, moving.gaussians, 0.5, &deformed, nullptr);
+      atex::Camera camera;
+      camera.width = view.width, camera.height = view.height;
+      camera.fx = view.fx, camera.fy = view.fy, camera.cx = view.width / 2.0, camera.cy = view.height / 2.0;
+      camera.world_to_camera = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 6, 0, 0, 0, 1};
+      at_half.gaussians = deformed;  // then keep the DC term only
+      at_half.gaussians.sh_degree = 0;
+      at_half.gaussians.sh.resize(deformed.size() * 3);
+      const size_t k = size_t(deformed.sh_coeffs());
+      for (size_t i = 0; i < deformed.size(); ++i) {
+        for (int c = 0; c < 3; ++c) at_half.gaussians.sh[i * 3 + size_t(c)] = deformed.sh[i * k * 3 + size_t(c)];
+      }
+      if (s.ok()) s = RenderReference(at_half, camera, out / "motion_u0.5_reference.png");
+      if (!s.ok()) return Fail("splatv reference picture", s);
+      manifest["splatv_view"] = {{"splatv", "motion.splatv"}, {"time", 0.5}, {"camera", "motion_camera.json"},
+                                 {"reference", "motion_u0.5_reference.png"}};
+      json cam = CameraJson(camera);
+      s = WriteText(out / "motion_camera.json", cam.dump(2));
+      if (!s.ok()) return Fail("splatv camera", s);
+    }
+    manifest["splatv"] = {{"file", "motion.splatv"}, {"reference", "motion_reference.json"}, {"gaussians", moving.gaussians.size()}};
+  }
+
+  atex::Status s = WriteText(out / "manifest.json", manifest.dump(2));
+  if (!s.ok()) return Fail("manifest", s);
+  std::printf("%s\n", manifest.dump(2).c_str());
+  return 0;
+}
