@@ -1,7 +1,9 @@
-// `atex convert IN OUT`: between .ply, .spz, .atex, .exr (texture atlas) and .drc.
+// `atex convert IN OUT`: between .ply, .spz, .atex, .exr (texture atlas) and .drc,
+// from a 4DGaussians output folder, and per-frame .ply/.spz export (--frames).
 // Thin front end over atex/converters/convert.h.
 #include <cstdio>
 #include <memory>
+#include <string>
 
 #include "atex/converters/convert.h"
 #include "cli.h"
@@ -22,7 +24,8 @@ struct ConvertArgs {
   std::string codec = "shuffle-zstd";
   std::string encoding = "f32";
   int zstd_level = 3;
-  bool frames = false;
+  std::string frames;  // START:END:STEP; empty: one output file
+  int iteration = -1;  // 4dgs input: -1 = the highest
   bool json = false;
 };
 
@@ -62,7 +65,19 @@ int RunConvert(const ConvertArgs& a) {
   if (a.has_time) options.time = a.time;
   options.base_asset = a.base;
   options.atlas_width = a.atlas_width;
-  options.frames = a.frames;
+  options.fourdgs.iteration = a.iteration;
+  if (!a.frames.empty()) {
+    auto range = atex::ParseFrameRange(a.frames);
+    if (!range.ok()) return atex::cli::Fail("convert", range.status());
+    options.frames = *range;
+  }
+  // Drawn only once frames are being written (reading a large asset comes first).
+  std::unique_ptr<atex::cli::Progress> bar;
+  options.frame_progress = [&bar](size_t done, size_t total) {
+    if (!bar) bar = std::make_unique<atex::cli::Progress>("convert frames", static_cast<long long>(total));
+    if (done < total) bar->Update(static_cast<long long>(done));  // Finish() draws the end
+    return true;
+  };
   auto codec = ParseCodec(a.codec);
   if (!codec.ok()) return atex::cli::Fail("convert", codec.status());
   options.atex.codec = *codec;
@@ -74,18 +89,33 @@ int RunConvert(const ConvertArgs& a) {
       *encoding;
 
   auto report = atex::ConvertFile(a.input, a.output, options);
-  if (!report.ok()) return atex::cli::Fail("convert", report.status());
+  if (!report.ok()) {
+    if (bar && bar->tty()) std::fputc('\n', stderr);  // end the progress line before the message
+    return atex::cli::Fail("convert", report.status());
+  }
+  if (bar) bar->Finish();
+  // Warnings also go to stderr so that they are seen when stdout is parsed (--json).
+  for (const auto& warning : report->warnings) std::fprintf(stderr, "atex convert: warning: %s\n", warning.c_str());
   if (a.json) {
     atex::cli::PrintJson(report->ToJson());
   } else {
-    std::printf("%s -> %s: %llu Gaussians (SH %d), %llu -> %llu bytes (%.2f bytes/Gaussian), read %.3f s, write %.3f s\n",
+    const size_t frames = report->frame_times.size();
+    char deform[48] = "";  // only when something was deformed
+    if (frames > 0 || report->time.has_value()) {
+      std::snprintf(deform, sizeof deform, "deform %.3f s, ", report->convert_seconds);
+    }
+    std::printf("%s -> %s%s: %llu Gaussians (SH %d), %llu -> %llu bytes (%.2f bytes/Gaussian%s), read %.3f s, "
+                "%swrite %.3f s\n",
                 std::string(atex::FileFormatName(report->from)).c_str(),
                 std::string(atex::FileFormatName(report->to)).c_str(),
+                frames ? (" x " + std::to_string(frames) + " frames in " + a.output).c_str() : "",
                 static_cast<unsigned long long>(report->gaussians), report->sh_degree,
                 static_cast<unsigned long long>(report->input_bytes),
                 static_cast<unsigned long long>(report->output_bytes),
-                report->gaussians ? double(report->output_bytes) / double(report->gaussians) : 0.0,
-                report->read_seconds, report->write_seconds);
+                report->gaussians
+                    ? double(report->output_bytes) / double(report->gaussians) / double(frames ? frames : 1)
+                    : 0.0,
+                frames ? " per frame" : "", report->read_seconds, deform, report->write_seconds);
     for (const auto& d : report->dropped) std::printf("  dropped: %s (the output format cannot hold it)\n", d.c_str());
     for (const auto& n : report->notes) std::printf("  note: %s\n", n.c_str());
   }
@@ -94,11 +124,17 @@ int RunConvert(const ConvertArgs& a) {
 
 atex::cli::Runner SetupConvert(CLI::App& app) {
   auto a = std::make_shared<ConvertArgs>();
-  app.add_option("input", a->input, "Input file (.ply, .spz, .atex, .exr)")->required();
-  app.add_option("output", a->output, "Output file (.ply, .spz, .atex, .exr, .drc)")->required();
-  app.add_option("--from", a->from, "Input format when the extension does not say it")
-      ->check(CLI::IsMember({"ply", "spz", "atex", "exr", "drc"}, CLI::ignore_case));
-  app.add_option("--to", a->to, "Output format when the extension does not say it")
+  app.add_option("input", a->input,
+                 "Input file (.ply, .spz, .atex, .exr), or a 4DGaussians output folder (the run folder, whose "
+                 "highest point_cloud/iteration_N is read, or one iteration folder holding point_cloud.ply and "
+                 "deformation.pth)")
+      ->required();
+  app.add_option("output", a->output, "Output file (.ply, .spz, .atex, .exr, .drc), or a folder with --frames")
+      ->required();
+  app.add_option("--from", a->from, "Input format when the extension does not say it (4dgs: a 4DGaussians folder)")
+      ->check(CLI::IsMember({"ply", "spz", "atex", "exr", "drc", "4dgs"}, CLI::ignore_case));
+  app.add_option("--to", a->to,
+                 "Output format when the extension does not say it (with --frames: ply or spz, default ply)")
       ->check(CLI::IsMember({"ply", "spz", "atex", "exr", "drc"}, CLI::ignore_case));
   app.add_option("--spz-version", a->spz_version, "SPZ version to write")->check(CLI::IsMember({3, 4}));
   app.add_option("--spz-axes", a->spz_axes,
@@ -106,7 +142,8 @@ atex::cli::Runner SetupConvert(CLI::App& app) {
       ->check(CLI::IsMember({"opencv", "stored"}));
   app.add_option("--draco-bits", a->draco_bits, "Draco position quantisation bits")->check(CLI::Range(1, 30));
   app.add_flag("--draco-attributes", a->draco_attributes, "Also store colour, opacity, log-scale and rotation");
-  app.add_option("--time", a->time, "Deform to this scene time for .ply/.spz/.drc output")
+  app.add_option("--time", a->time,
+                 "Deform to this scene time for .ply/.spz/.drc output (whole field: every enabled head)")
       ->each([a](const std::string&) { a->has_time = true; });
   app.add_option("--base", a->base, ".exr input: the asset (.atex/.ply/.spz) whose textures the atlas replaces");
   app.add_option("--atlas-width", a->atlas_width, ".exr output: atlas width in texels (0: square-ish)")
@@ -115,11 +152,21 @@ atex::cli::Runner SetupConvert(CLI::App& app) {
   app.add_option("--encoding", a->encoding, ".atex output: every attribute stream as f32, f16, q16 or q8")
       ->check(CLI::IsMember({"f32", "f16", "q16", "q8"}));
   app.add_option("--zstd-level", a->zstd_level, ".atex output: zstd level")->check(CLI::Range(1, 22));
-  app.add_flag("--frames", a->frames, "Reserved: per-frame export (not implemented yet)");
+  app.add_option("--frames", a->frames,
+                 "START:END:STEP (scene time units, END inclusive, e.g. 0:1:0.1 -> 11 frames): write the Gaussians "
+                 "deformed at each time (every enabled head, opacity and SH included) as OUTPUT/frame_0000.ply ... "
+                 "(--to spz for .spz) and OUTPUT/frames.json with each file's time; textures are left out")
+      ->excludes("--time");
+  app.add_option("--iteration", a->iteration,
+                 "4DGaussians input: import point_cloud/iteration_N (default: the highest)")
+      ->check(CLI::Range(0, 1 << 30));
   app.add_flag("--json", a->json, "Print a machine-readable summary");
   return [a]() { return RunConvert(*a); };
 }
 
-ATEX_REGISTER_COMMAND("convert", "Convert between .ply, .spz, .atex, .exr (texture atlas) and .drc", SetupConvert);
+ATEX_REGISTER_COMMAND("convert",
+                      "Convert between .ply, .spz, .atex, .exr (texture atlas) and .drc, import a 4DGaussians run, "
+                      "or export per-frame .ply/.spz (--frames)",
+                      SetupConvert);
 
 }  // namespace

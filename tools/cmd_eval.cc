@@ -12,7 +12,7 @@ namespace {
 
 struct EvalArgs {
   std::string asset, data, backend = "auto", kind = "auto", split = "test";
-  int timesteps = 0, downscale = 1;
+  int timesteps = 0, downscale = 1, timestep_stride = 1, train_cameras = 0;
   bool json = false;
 };
 
@@ -25,6 +25,8 @@ int RunEval(const EvalArgs& a) {
   dopts.kind = *kind;
   dopts.max_timesteps = a.timesteps;
   dopts.downscale = a.downscale;
+  dopts.timestep_stride = a.timestep_stride;
+  dopts.train_cameras = a.train_cameras;
   auto dataset = OpenDataset(a.data, dopts);
   if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
   auto backend = cli::SelectBackend(a.backend);
@@ -70,6 +72,12 @@ atex::cli::Runner SetupEval(CLI::App& app) {
   app.add_option("--dataset-kind", a->kind, "auto, panoptic, dnerf, dnerf-npz, n3dv")->capture_default_str();
   app.add_option("--timesteps", a->timesteps, "Use only the first N timesteps (0 = all present)");
   app.add_option("--downscale", a->downscale, "Integer image downscale factor")->capture_default_str();
+  app.add_option("--timestep-stride", a->timestep_stride,
+                 "Keep every K-th timestep (both splits; times unchanged): K times faster motion")
+      ->capture_default_str();
+  app.add_option("--train-cameras", a->train_cameras,
+                 "Use N evenly spaced training cameras (sorted ids, ids[i*M/N]; 0 = all)")
+      ->capture_default_str();
   app.add_flag("--json", a->json, "Machine-readable output");
   return [a]() { return RunEval(*a); };
 }

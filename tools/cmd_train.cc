@@ -16,7 +16,7 @@ struct TrainArgs {
   std::string data, out, config_file, stage = "all", textures, backend = "auto", init, checkpoint_dir, resume,
       metrics, kind = "auto";
   std::vector<std::string> overrides;
-  int timesteps = 0, downscale = 1, checkpoint_every = -1;
+  int timesteps = 0, downscale = 1, checkpoint_every = -1, timestep_stride = 1, train_cameras = 0;
   long long seed = -1;
   bool json = false, print_config = false, fp32 = false, profile = false;
   double time_limit = 0;
@@ -72,6 +72,8 @@ int RunTrain(const TrainArgs& a) {
   dopts.kind = *kind;
   dopts.max_timesteps = a.timesteps;
   dopts.downscale = a.downscale;
+  dopts.timestep_stride = a.timestep_stride;
+  dopts.train_cameras = a.train_cameras;
   auto dataset = OpenDataset(a.data, dopts);
   if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
   for (const auto& w : (*dataset)->warnings()) std::cerr << "atex train: note: " << w << "\n";
@@ -173,6 +175,12 @@ atex::cli::Runner SetupTrain(CLI::App& app) {
   app.add_option("--dataset-kind", a->kind, "auto, panoptic, dnerf, dnerf-npz, n3dv")->capture_default_str();
   app.add_option("--timesteps", a->timesteps, "Use only the first N timesteps (0 = all present)");
   app.add_option("--downscale", a->downscale, "Integer image downscale factor")->capture_default_str();
+  app.add_option("--timestep-stride", a->timestep_stride,
+                 "Keep every K-th timestep (both splits; times unchanged): K times faster motion")
+      ->capture_default_str();
+  app.add_option("--train-cameras", a->train_cameras,
+                 "Use N evenly spaced training cameras (sorted ids, ids[i*M/N]; 0 = all)")
+      ->capture_default_str();
   app.add_option("--seed", a->seed, "Random seed (default: the config's, 6666)");
   app.add_flag("--print-config", a->print_config, "Print the default config as JSON and exit");
   app.add_flag("--fp32", a->fp32, "CUDA: full FP32 for the deformation MLP (default: TF32 tensor cores)");

@@ -3,8 +3,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <system_error>
 
@@ -46,13 +48,55 @@ Status Progress(const ConvertOptions& options, std::string_view stage, double fr
 
 StatusOr<FileFormat> Resolve(FileFormat format, const std::string& path, const char* role) {
   if (format != FileFormat::kUnknown) return format;
+  // The only folder format is a 4DGaussians output; a folder that is not one
+  // fails in the importer with a message that says what it looked for.
+  std::error_code ec;
+  if (std::string_view(role) == "input" && std::filesystem::is_directory(path, ec)) return FileFormat::kFourDgs;
   const FileFormat by_name = FileFormatFromPath(path);
   if (by_name == FileFormat::kUnknown) {
     return MakeError(StatusCode::kInvalidArgument, "cannot tell the format of ", role, " '", path,
-                     "' from its extension (.ply, .spz, .atex, .exr, .drc); name it with --from/--to");
+                     "' from its extension (.ply, .spz, .atex, .exr, .drc; a folder for a 4DGaussians run); ",
+                     "name it with --from/--to");
   }
   return by_name;
 }
+
+// Checks what ParseFrameRange checks, for ranges built in code.
+Status CheckFrameRange(const FrameRange& r) {
+  if (!std::isfinite(r.start) || !std::isfinite(r.end) || !std::isfinite(r.step)) {
+    return MakeError(StatusCode::kInvalidArgument, "--frames ", r.start, ":", r.end, ":", r.step,
+                     " has a part that is not a finite number");
+  }
+  if (!(r.step > 0)) {
+    return MakeError(StatusCode::kInvalidArgument, "--frames STEP ", r.step,
+                     " is not positive (times go from START up to END)");
+  }
+  if (r.end < r.start) {
+    return MakeError(StatusCode::kInvalidArgument, "--frames END ", r.end, " is before START ", r.start);
+  }
+  // In double so that a tiny step cannot overflow the count.
+  const double count = std::floor((r.end - r.start) / r.step + kFrameTolerance) + 1;
+  if (!(count <= static_cast<double>(kMaxFrames))) {
+    const std::string how_many = count < 1e18 ? std::to_string(static_cast<uint64_t>(count)) : StrCat(count);
+    return MakeError(StatusCode::kInvalidArgument, "--frames ", r.start, ":", r.end, ":", r.step, " gives ", how_many,
+                     " frames, more than the limit of ", kMaxFrames, " (use a larger STEP)");
+  }
+  return Status::Ok();
+}
+
+// Per-frame file names sort in time order: frame_0000 ... with more digits
+// only when there are more than 10000 frames.
+std::string FrameFileName(size_t index, size_t count, FileFormat format) {
+  int digits = 4;
+  for (size_t n = 10000; n < count; n *= 10) ++digits;
+  char name[48];
+  std::snprintf(name, sizeof name, "frame_%0*zu.%s", digits, index, format == FileFormat::kSpz ? "spz" : "ply");
+  return name;
+}
+
+constexpr const char* kTexturesDroppedWarning =
+    "textures dropped: .ply/.spz/.drc cannot hold them, so the output renders as plain 4DGS without the "
+    "per-Gaussian texture detail";
 
 // An asset holding static Gaussians read from a splat file.
 Asset AssetFromGaussians(Gaussians g, const std::string& path, nlohmann::json source, std::string axes) {
@@ -87,11 +131,148 @@ StatusOr<Gaussians> GaussiansForOutput(const Asset& asset, const ConvertOptions&
   return deformed;
 }
 
-void NoteDropped(const Asset& asset, ConvertReport* report) {
+// `baked`: the deformation went into the output (per-frame export), not dropped.
+void NoteDropped(const Asset& asset, ConvertReport* report, bool baked = false) {
   if (report == nullptr) return;
-  if (asset.textures) report->dropped.push_back("textures");
-  if (asset.deformation) report->dropped.push_back("deformation");
+  if (asset.textures) {
+    report->dropped.push_back("textures");
+    report->warnings.push_back(kTexturesDroppedWarning);
+  }
+  if (asset.deformation && !baked) report->dropped.push_back("deformation");
   if (asset.stats) report->dropped.push_back("stats");
+}
+
+// The output of a per-frame export must be a folder or not exist yet.
+Status CheckFramesFolder(const std::string& folder) {
+  std::error_code ec;
+  const bool is_folder = std::filesystem::is_directory(folder, ec);
+  if (!is_folder && std::filesystem::exists(folder, ec)) {
+    return MakeError(StatusCode::kInvalidArgument, "--frames writes into a folder; '", folder, "' is a file");
+  }
+  // `atex convert a.atex --frames 0:1:0.1 out.ply` is far more likely a
+  // mistake than a wish for a folder named out.ply.
+  if (!is_folder && FileFormatFromPath(folder) != FileFormat::kUnknown) {
+    return MakeError(StatusCode::kInvalidArgument, "--frames writes into a folder, but '", folder,
+                     "' looks like a file name; name a folder and choose the frames' format with --to ply|spz");
+  }
+  return Status::Ok();
+}
+
+// Per-frame export (see convert.h): one file per time in `folder`, then frames.json.
+Status WriteFrames(const std::string& folder, const Asset& asset, FileFormat format_in, const ConvertOptions& options,
+                   ConvertReport* report) {
+  namespace fs = std::filesystem;
+  const FileFormat format = format_in == FileFormat::kUnknown ? FileFormat::kPly : format_in;
+  if (format != FileFormat::kPly && format != FileFormat::kSpz) {
+    return MakeError(StatusCode::kInvalidArgument, "--frames writes .ply or .spz files, not ", FileFormatName(format));
+  }
+  if (options.time) return MakeError(StatusCode::kInvalidArgument, "--time and --frames exclude each other");
+  ATEX_RETURN_IF_ERROR(CheckFrameRange(*options.frames));
+  ATEX_RETURN_IF_ERROR(CheckFramesFolder(folder));
+  std::error_code ec;
+  fs::create_directories(folder, ec);
+  if (ec) return MakeError(StatusCode::kIoError, "cannot create the frames folder '", folder, "': ", ec.message());
+
+  const std::vector<double> times = options.frames->Times();
+  const fs::path dir(folder);
+  const std::string manifest_path = (dir / "frames.json").string();
+  // A manifest left by an earlier export would describe files this one
+  // overwrites; without it the folder reads as incomplete until we finish.
+  fs::remove(manifest_path, ec);
+  if (ec) return MakeError(StatusCode::kIoError, "cannot remove the old '", manifest_path, "': ", ec.message());
+
+  NoteDropped(asset, report, /*baked=*/true);
+  if (report) {
+    if (!asset.deformation) {
+      report->notes.push_back(StrCat("static asset: every one of the ", times.size(),
+                                     " frames holds the canonical Gaussians"));
+    } else {
+      report->notes.push_back(StrCat("deformation (every enabled head) baked into ", times.size(), " frames"));
+      const Metadata& m = asset.metadata;
+      if (times.front() < m.time_min || times.back() > m.time_max) {
+        report->notes.push_back(StrCat("frames from ", times.front(), " to ", times.back(),
+                                       " reach outside the asset's time range [", m.time_min, ", ", m.time_max,
+                                       "]; the motion there is the field's extrapolation, not trained motion"));
+      }
+    }
+    if (fs::exists(dir / FrameFileName(times.size(), times.size(), format), ec)) {
+      report->notes.push_back(StrCat("'", folder, "' still holds frame files of an earlier, longer export after ",
+                                     FrameFileName(times.size() - 1, times.size(), format),
+                                     "; frames.json lists this export's files only"));
+    }
+  }
+
+  SpzWriteOptions spz;
+  spz.version = options.spz_version;
+  spz.axes = options.spz_axes;
+  auto encode = [&](const Gaussians& g) -> StatusOr<std::vector<uint8_t>> {
+    if (format == FileFormat::kPly) return EncodePlyGaussians(g);
+    return EncodeSpz(g, spz);
+  };
+  ATEX_RETURN_IF_ERROR(Progress(options, "write", 0.0));
+  // A static asset gives the same bytes at every time: encode them once.
+  std::vector<uint8_t> static_bytes;
+  if (!asset.deformation) {
+    const auto start = Clock::now();
+    ATEX_ASSIGN_OR_RETURN(static_bytes, encode(asset.gaussians));
+    if (report) report->write_seconds += SecondsSince(start);
+  }
+  Gaussians deformed;
+  nlohmann::json entries = nlohmann::json::array();
+  for (size_t i = 0; i < times.size(); ++i) {
+    const std::string name = FrameFileName(i, times.size(), format);
+    const std::string path = (dir / name).string();
+    std::vector<uint8_t> frame_bytes;
+    if (asset.deformation) {
+      const auto convert_start = Clock::now();
+      Status deformed_ok = DeformForward(*asset.deformation, asset.gaussians, times[i], &deformed,
+                                         static_cast<DeformCache*>(nullptr));
+      if (!deformed_ok.ok()) return deformed_ok.WithContext(StrCat("frame ", i, " (time ", times[i], ")"));
+      if (report) report->convert_seconds += SecondsSince(convert_start);
+      const auto encode_start = Clock::now();
+      auto encoded = encode(deformed);
+      if (!encoded.ok()) return encoded.status().WithContext(StrCat("frame ", i, " (time ", times[i], ")"));
+      frame_bytes = std::move(encoded).value();
+      if (report) report->write_seconds += SecondsSince(encode_start);
+    }
+    const std::vector<uint8_t>& bytes = asset.deformation ? frame_bytes : static_bytes;
+    const auto write_start = Clock::now();
+    ATEX_RETURN_IF_ERROR(WriteFileAtomic(path, bytes));
+    if (report) {
+      report->write_seconds += SecondsSince(write_start);
+      report->outputs.push_back(path);
+      report->output_bytes += bytes.size();
+      report->frame_times.push_back(times[i]);
+    }
+    entries.push_back({{"file", name}, {"time", times[i]}});
+    if (options.frame_progress && !options.frame_progress(i + 1, times.size())) {
+      return MakeError(StatusCode::kCancelled, "per-frame export cancelled after frame ", i + 1, " of ",
+                       times.size(), " (frames.json not written)");
+    }
+  }
+
+  const FrameRange& range = *options.frames;
+  nlohmann::json manifest = {{"generator", "atex convert"},
+                             {"format", FileFormatName(format)},
+                             {"count", times.size()},
+                             {"range", {{"start", range.start}, {"end", range.end}, {"step", range.step}}},
+                             {"asset_time_range", {asset.metadata.time_min, asset.metadata.time_max}},
+                             {"deformed", asset.deformation.has_value()},
+                             {"textures_dropped", asset.textures.has_value()},
+                             {"frames", std::move(entries)}};
+  if (format == FileFormat::kSpz) {
+    manifest["spz"] = {{"version", options.spz_version},
+                       {"axes", options.spz_axes == SpzAxes::kOpenCv ? "RUB (converted from opencv)" : "stored"}};
+  }
+  const std::string text = manifest.dump(1) + "\n";
+  const auto write_start = Clock::now();
+  ATEX_RETURN_IF_ERROR(WriteFileAtomic(manifest_path, text.data(), text.size()));
+  if (report) {
+    report->write_seconds += SecondsSince(write_start);
+    report->outputs.push_back(manifest_path);
+    report->output_bytes += text.size();
+  }
+  return Progress(options, "write", 1.0);
 }
 
 std::string TextureMode(const TexturePool& pool) {
@@ -110,6 +291,7 @@ std::string_view FileFormatName(FileFormat format) {
     case FileFormat::kAtex: return "atex";
     case FileFormat::kExrAtlas: return "exr";
     case FileFormat::kDraco: return "drc";
+    case FileFormat::kFourDgs: return "4dgs";
     case FileFormat::kUnknown: break;
   }
   return "unknown";
@@ -118,10 +300,62 @@ std::string_view FileFormatName(FileFormat format) {
 StatusOr<FileFormat> ParseFileFormat(std::string_view name) {
   const std::string lower = Lower(name);
   for (FileFormat f : {FileFormat::kPly, FileFormat::kSpz, FileFormat::kAtex, FileFormat::kExrAtlas,
-                       FileFormat::kDraco}) {
+                       FileFormat::kDraco, FileFormat::kFourDgs}) {
     if (lower == FileFormatName(f)) return f;
   }
-  return MakeError(StatusCode::kInvalidArgument, "unknown format '", name, "' (ply, spz, atex, exr, drc)");
+  return MakeError(StatusCode::kInvalidArgument, "unknown format '", name, "' (ply, spz, atex, exr, drc, 4dgs)");
+}
+
+std::vector<double> FrameRange::Times() const {
+  if (!CheckFrameRange(*this).ok()) return {};
+  const size_t count = static_cast<size_t>(std::floor((end - start) / step + kFrameTolerance)) + 1;
+  std::vector<double> times(count);
+  // start + i * step rather than a running sum, so that errors do not accumulate.
+  for (size_t i = 0; i < count; ++i) times[i] = start + static_cast<double>(i) * step;
+  // When START and STEP are short decimals (0.1, 0.04, 2.5), count in units of
+  // their last decimal place so that each time is the double nearest to its
+  // decimal value (3 x 0.1 gives 0.3, not 0.30000000000000004): frames.json
+  // then shows the times a user typed or a dataset lists.
+  for (int digits = 0; digits <= 9; ++digits) {
+    const double unit = std::pow(10.0, digits);
+    const double a = std::round(start * unit), s = std::round(step * unit);
+    // A decimal read into a double misses its scaled integer by a few ulps only.
+    auto near = [](double scaled, double rounded) {
+      return std::fabs(scaled - rounded) <= std::max(1e-9, 1e-14 * std::fabs(rounded));
+    };
+    if (!near(start * unit, a) || !near(step * unit, s)) continue;
+    if (std::fabs(a) + s * static_cast<double>(count) > 0x1p52) break;  // integers no longer exact
+    for (size_t i = 0; i < count; ++i) times[i] = (a + static_cast<double>(i) * s) / unit;
+    break;
+  }
+  if (std::fabs(times.back() - end) <= kFrameTolerance * step) times.back() = end;
+  return times;
+}
+
+StatusOr<FrameRange> ParseFrameRange(std::string_view text) {
+  const char* names[3] = {"START", "END", "STEP"};
+  double values[3] = {0, 0, 0};
+  std::string_view rest = text;
+  for (int k = 0; k < 3; ++k) {
+    const size_t colon = rest.find(':');
+    if ((k < 2) != (colon != std::string_view::npos)) {
+      return MakeError(StatusCode::kInvalidArgument, "--frames '", text,
+                       "' is not START:END:STEP (three numbers separated by ':', e.g. 0:1:0.1)");
+    }
+    const std::string_view part = rest.substr(0, colon);
+    if (part.empty()) {
+      return MakeError(StatusCode::kInvalidArgument, "--frames '", text, "': ", names[k], " is empty");
+    }
+    const auto [end, error] = std::from_chars(part.data(), part.data() + part.size(), values[k]);
+    if (error != std::errc() || end != part.data() + part.size() || !std::isfinite(values[k])) {
+      return MakeError(StatusCode::kInvalidArgument, "--frames '", text, "': ", names[k], " '", part,
+                       "' is not a finite number");
+    }
+    rest = colon == std::string_view::npos ? std::string_view() : rest.substr(colon + 1);
+  }
+  const FrameRange range{values[0], values[1], values[2]};
+  ATEX_RETURN_IF_ERROR(CheckFrameRange(range));
+  return range;
 }
 
 FileFormat FileFormatFromPath(const std::string& path) {
@@ -144,8 +378,11 @@ nlohmann::json ConvertReport::ToJson() const {
                          {"seconds", {{"read", read_seconds}, {"convert", convert_seconds}, {"write", write_seconds}}},
                          {"outputs", outputs},
                          {"dropped", dropped},
+                         {"warnings", warnings},
                          {"notes", notes}};
   json["time"] = time ? nlohmann::json(*time) : nlohmann::json(nullptr);
+  json["frames"] = frame_times.empty() ? nlohmann::json(nullptr)
+                                       : nlohmann::json({{"count", frame_times.size()}, {"times", frame_times}});
   return json;
 }
 
@@ -198,6 +435,29 @@ StatusOr<Asset> ReadAssetAs(const std::string& path, FileFormat format_in, const
     case FileFormat::kDraco:
       return MakeError(StatusCode::kUnsupported,
                        "a Draco .drc holds points only (no Gaussian shapes); it can be written but not read");
+    case FileFormat::kFourDgs: {
+      ATEX_ASSIGN_OR_RETURN(Asset asset, ImportFourDGaussians(path, options.fourdgs));
+      if (report) {
+        // The importer records the iteration folder it chose; count the two files it read.
+        const nlohmann::json& extra = asset.metadata.extra;
+        const std::filesystem::path dir = extra.value("source", path);
+        report->input_bytes +=
+            FileSize((dir / "point_cloud.ply").string()) + FileSize((dir / "deformation.pth").string());
+        static constexpr const char* kHeadNames[kNumDeformHeads] = {"position", "scale", "rotation", "opacity", "SH"};
+        std::string heads;
+        for (int h = 0; h < kNumDeformHeads; ++h) {
+          if (!asset.deformation || !asset.deformation->config.heads[h]) continue;
+          heads += StrCat(heads.empty() ? "" : ", ", kHeadNames[h]);
+        }
+        const std::string iteration =
+            extra.contains("iteration") ? StrCat(" (iteration ", extra["iteration"].dump(), ")") : std::string();
+        const nlohmann::json& flags = extra.value("head_flags", nlohmann::json::object());
+        report->notes.push_back(StrCat("4DGaussians checkpoint '", dir.string(), "'", iteration,
+                                       "; deformation heads: ", heads.empty() ? "none" : heads, " (flags from ",
+                                       flags.value("from", std::string("?")), ")"));
+      }
+      return asset;
+    }
     case FileFormat::kUnknown:
       break;
   }
@@ -206,10 +466,8 @@ StatusOr<Asset> ReadAssetAs(const std::string& path, FileFormat format_in, const
 
 Status WriteAssetAs(const std::string& path, const Asset& asset, FileFormat format_in, const ConvertOptions& options,
                     ConvertReport* report) {
+  if (options.frames) return WriteFrames(path, asset, format_in, options, report);
   ATEX_ASSIGN_OR_RETURN(FileFormat format, Resolve(format_in, path, "output"));
-  if (options.frames) {
-    return MakeError(StatusCode::kUnsupported, "per-frame export (--frames) is reserved and not implemented yet");
-  }
   auto written = [&](const std::string& p) {
     if (report == nullptr) return;
     report->outputs.push_back(p);
@@ -265,6 +523,8 @@ Status WriteAssetAs(const std::string& path, const Asset& asset, FileFormat form
       written(ExrAtlasSidecarPath(path));
       break;
     }
+    case FileFormat::kFourDgs:
+      return MakeError(StatusCode::kUnsupported, "4DGaussians checkpoints can be read, not written");
     case FileFormat::kUnknown:
       return MakeError(StatusCode::kInternal, "unhandled output format");
   }
@@ -275,12 +535,24 @@ StatusOr<ConvertReport> ConvertFile(const std::string& input, const std::string&
                                     const ConvertOptions& options) {
   ConvertReport report;
   ATEX_ASSIGN_OR_RETURN(report.from, Resolve(options.from, input, "input"));
-  ATEX_ASSIGN_OR_RETURN(report.to, Resolve(options.to, output, "output"));
+  if (options.frames) {
+    // The output is a folder: its name says nothing about the frames' format.
+    report.to = options.to == FileFormat::kUnknown ? FileFormat::kPly : options.to;
+    if (report.to != FileFormat::kPly && report.to != FileFormat::kSpz) {
+      return MakeError(StatusCode::kInvalidArgument, "--frames writes .ply or .spz files, not ",
+                       FileFormatName(report.to));
+    }
+    if (options.time) return MakeError(StatusCode::kInvalidArgument, "--time and --frames exclude each other");
+    ATEX_RETURN_IF_ERROR(CheckFrameRange(*options.frames));
+    ATEX_RETURN_IF_ERROR(CheckFramesFolder(output));  // before a possibly long read
+  } else {
+    ATEX_ASSIGN_OR_RETURN(report.to, Resolve(options.to, output, "output"));
+  }
+  if (report.to == FileFormat::kFourDgs) {
+    return MakeError(StatusCode::kUnsupported, "4DGaussians checkpoints can be read, not written");
+  }
   if (options.spz_version != 3 && options.spz_version != 4) {
     return MakeError(StatusCode::kInvalidArgument, "--spz-version ", options.spz_version, " (3 or 4)");
-  }
-  if (options.frames) {
-    return MakeError(StatusCode::kUnsupported, "per-frame export (--frames) is reserved and not implemented yet");
   }
   std::error_code ec;
   if (std::filesystem::equivalent(input, output, ec)) {

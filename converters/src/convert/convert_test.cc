@@ -220,9 +220,10 @@ TEST(Convert, ErrorsAreClear) {
   EXPECT_EQ(ConvertFile(ply, (dir / "t.exr").string()).status().code(), StatusCode::kInvalidArgument);  // no textures
   EXPECT_EQ(ConvertFile((dir / "t.exr").string(), (dir / "o.atex").string()).status().code(),
             StatusCode::kInvalidArgument);  // no --base
-  ConvertOptions frames;
-  frames.frames = true;
-  EXPECT_EQ(ConvertFile(ply, (dir / "o.ply").string(), frames).status().code(), StatusCode::kUnsupported);
+  ConvertOptions frames;  // per-frame export writes .ply or .spz only (frames_test.cc has the rest)
+  frames.frames = FrameRange{0, 1, 0.5};
+  frames.to = FileFormat::kDraco;
+  EXPECT_EQ(ConvertFile(ply, (dir / "frames").string(), frames).status().code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(ConvertFile(ply, ply).status().code(), StatusCode::kInvalidArgument);
   ConvertOptions cancel;
   cancel.progress = [](std::string_view stage, double) { return stage != "write"; };

@@ -50,6 +50,7 @@
 namespace atex {
 
 class ImageCache;  // data/image_cache.h
+struct InMemoryFrame;
 
 enum class DatasetKind { kAuto, kPanoptic, kDNerf, kDNerfNpz, kN3dv, kInMemory };
 
@@ -70,6 +71,16 @@ struct DatasetOptions {
   // Background RGB; default black (also for D-NeRF's RGBA frames, to match the tiny lego).
   std::optional<std::array<float, 3>> background;
   bool load_val_split = false;  // D-NeRF / lego .npz: also expose the val frames (val_views())
+  // Stress settings (applied after the loader, to every layout; a warning says what was kept):
+  // Keep every K-th timestep (1 = all): of the distinct timesteps loaded (after max_timesteps)
+  // those of rank 0, K, 2K, ... are kept in both splits and renumbered 0..T'-1; times are
+  // unchanged, so the scene moves K times as far between consecutive frames. Needs views
+  // with timesteps (Panoptic, N3DV, in-memory); kInvalidArgument for D-NeRF.
+  int timestep_stride = 1;
+  // Train on N of the M training cameras (0 = all): of the distinct camera ids of the
+  // training views, sorted ascending, ids[floor(i * M / N)] for i = 0..N-1 (deterministic,
+  // evenly spaced). Test views are unchanged. D-NeRF: camera id = frame. kInvalidArgument if N > M.
+  int train_cameras = 0;
 };
 
 struct View {
@@ -135,6 +146,12 @@ class Dataset {
   std::vector<std::string> warnings_;
 
  private:
+  friend StatusOr<std::unique_ptr<Dataset>> OpenDataset(const std::string& path, const DatasetOptions& options);
+  friend StatusOr<std::unique_ptr<Dataset>> MakeInMemoryDataset(std::string name, std::vector<InMemoryFrame> frames,
+                                                                const DatasetOptions& options);
+  // DatasetOptions::timestep_stride and train_cameras, on the views the loader made.
+  Status SelectViews(const DatasetOptions& options);
+
   uint64_t cache_limit_;
   std::shared_ptr<ImageCache> cache_;
 };

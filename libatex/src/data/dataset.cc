@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <set>
 
@@ -85,6 +86,72 @@ StatusOr<std::shared_ptr<const Image>> Dataset::LoadMask(const View& view) const
   return cache_->Insert(key, std::make_shared<const Image>(std::move(mask)));
 }
 
+Status Dataset::SelectViews(const DatasetOptions& options) {
+  if (options.timestep_stride > 1) {
+    const int stride = options.timestep_stride;
+    std::set<int> steps;
+    for (const auto* views : {&train_, &test_, &val_}) {
+      for (const View& v : *views) {
+        if (v.timestep >= 0) steps.insert(v.timestep);
+      }
+    }
+    if (steps.empty()) {
+      return MakeError(StatusCode::kInvalidArgument, name_, ": a timestep stride needs a multi-view video dataset (",
+                       DatasetKindName(kind_), " views have no timesteps)");
+    }
+    std::map<int, int> renumber;  // kept timestep -> its new index
+    int rank = 0;
+    for (int t : steps) {
+      if (rank % stride == 0) renumber[t] = rank / stride;
+      ++rank;
+    }
+    for (auto* views : {&train_, &test_, &val_}) {
+      std::vector<View> kept;
+      for (View& v : *views) {
+        auto it = renumber.find(v.timestep);
+        if (it == renumber.end()) continue;
+        v.timestep = it->second;
+        kept.push_back(std::move(v));
+      }
+      *views = std::move(kept);
+    }
+    timestep_count_ = static_cast<int>(renumber.size());
+    warnings_.push_back(StrCat("timestep stride ", stride, ": ", renumber.size(), " of ", steps.size(),
+                               " timesteps kept (every ", stride, "th, times unchanged)"));
+  }
+  if (options.train_cameras > 0) {
+    std::set<int> id_set;
+    for (const View& v : train_) id_set.insert(v.camera_id);
+    const std::vector<int> ids(id_set.begin(), id_set.end());
+    const size_t m = ids.size(), n = static_cast<size_t>(options.train_cameras);
+    if (n > m) {
+      return MakeError(StatusCode::kInvalidArgument, name_, ": ", n, " training cameras requested, the dataset has ",
+                       m);
+    }
+    std::set<int> chosen;
+    for (size_t i = 0; i < n; ++i) chosen.insert(ids[i * m / n]);
+    std::vector<View> kept;
+    for (View& v : train_) {
+      if (chosen.count(v.camera_id)) kept.push_back(std::move(v));
+    }
+    train_ = std::move(kept);
+    std::string list;
+    for (int id : chosen) list += StrCat(list.empty() ? "" : ",", id);
+    warnings_.push_back(StrCat("training on ", n, " of ", m, " training cameras (ids ", list, ")"));
+    bool has_timesteps = false;
+    std::set<double> train_times;
+    for (const View& v : train_) {
+      has_timesteps |= v.timestep >= 0;
+      train_times.insert(v.camera.time);
+    }
+    if (!has_timesteps) timestep_count_ = static_cast<int>(train_times.size());  // D-NeRF: distinct train times
+  }
+  if (options.timestep_stride > 1 || options.train_cameras > 0) {
+    data_detail::FinishTimeRange(train_, test_, &time_min_, &time_max_);
+  }
+  return Status::Ok();
+}
+
 // ---------------------------------------------------------------------------
 namespace {
 
@@ -153,6 +220,12 @@ Status ValidateOptions(const DatasetOptions& options) {
   }
   if (options.max_timesteps < 0) {
     return MakeError(StatusCode::kInvalidArgument, "max_timesteps ", options.max_timesteps, " (0 = all)");
+  }
+  if (options.timestep_stride < 1) {
+    return MakeError(StatusCode::kInvalidArgument, "timestep stride ", options.timestep_stride, " (must be >= 1)");
+  }
+  if (options.train_cameras < 0) {
+    return MakeError(StatusCode::kInvalidArgument, "train camera count ", options.train_cameras, " (0 = all)");
   }
   if (options.background) {
     for (float v : *options.background) {
@@ -266,6 +339,7 @@ StatusOr<std::unique_ptr<Dataset>> MakeInMemoryDataset(std::string name, std::ve
   ATEX_RETURN_IF_ERROR(data_detail::ValidateOptions(options));
   auto dataset = std::make_unique<InMemoryDataset>(std::move(name), options, std::move(frames));
   ATEX_RETURN_IF_ERROR(dataset->Build(options));
+  ATEX_RETURN_IF_ERROR(dataset->SelectViews(options));
   return std::unique_ptr<Dataset>(std::move(dataset));
 }
 
@@ -290,15 +364,17 @@ StatusOr<std::unique_ptr<Dataset>> OpenDataset(const std::string& path, const Da
                        "and not an .npz file)");
     }
   }
+  StatusOr<std::unique_ptr<Dataset>> dataset = MakeError(
+      StatusCode::kInvalidArgument, path, ": dataset kind '", DatasetKindName(kind), "' cannot be opened from a path");
   switch (kind) {
-    case DatasetKind::kPanoptic: return data_detail::OpenPanoptic(path, options);
-    case DatasetKind::kDNerf: return data_detail::OpenDNerf(path, options);
-    case DatasetKind::kDNerfNpz: return data_detail::OpenDNerfNpz(path, options);
-    case DatasetKind::kN3dv: return data_detail::OpenN3dv(path, options);
+    case DatasetKind::kPanoptic: dataset = data_detail::OpenPanoptic(path, options); break;
+    case DatasetKind::kDNerf: dataset = data_detail::OpenDNerf(path, options); break;
+    case DatasetKind::kDNerfNpz: dataset = data_detail::OpenDNerfNpz(path, options); break;
+    case DatasetKind::kN3dv: dataset = data_detail::OpenN3dv(path, options); break;
     default: break;
   }
-  return MakeError(StatusCode::kInvalidArgument, path, ": dataset kind '", DatasetKindName(kind),
-                   "' cannot be opened from a path");
+  if (dataset.ok()) ATEX_RETURN_IF_ERROR((*dataset)->SelectViews(options));
+  return dataset;
 }
 
 }  // namespace atex

@@ -478,5 +478,101 @@ TEST(InMemoryDataset, ViewsImagesAndValidation) {
   EXPECT_EQ(MakeInMemoryDataset("bad", {}, bad).status().code(), StatusCode::kInvalidArgument);
 }
 
+
+// DatasetOptions::timestep_stride and train_cameras on a synthetic 3-camera x 7-timestep video
+// (cameras 2, 5, 9, 11 train; 20 test).
+TEST(InMemoryDataset, TimestepStrideAndTrainCameraSubset) {
+  std::vector<InMemoryFrame> frames;
+  for (int t = 0; t < 7; ++t) {
+    for (int cam : {2, 5, 9, 11, 20}) {
+      InMemoryFrame f;
+      f.view.camera.width = 4;
+      f.view.camera.height = 2;
+      f.view.camera.fx = f.view.camera.fy = 3;
+      f.view.camera.time = t / 6.0;
+      f.view.camera_id = cam;
+      f.view.timestep = t;
+      f.image = Image(4, 2, 3, 0.1f * t);
+      f.test = cam == 20;
+      frames.push_back(std::move(f));
+    }
+  }
+  DatasetOptions options;
+  options.timestep_stride = 3;
+  auto strided = MakeInMemoryDataset("video", frames, options);
+  ASSERT_TRUE(strided.ok()) << strided.status().ToString();
+  EXPECT_EQ((*strided)->timestep_count(), 3);  // timesteps 0, 3, 6
+  EXPECT_EQ((*strided)->train_views().size(), 4u * 3);
+  EXPECT_EQ((*strided)->test_views().size(), 3u);
+  std::set<int> steps;
+  for (const View& v : (*strided)->train_views()) steps.insert(v.timestep);
+  EXPECT_EQ(steps, (std::set<int>{0, 1, 2}));
+  EXPECT_DOUBLE_EQ((*strided)->test_views()[1].camera.time, 0.5);  // original time of timestep 3
+  auto image = (*strided)->LoadImage((*strided)->test_views()[2]);
+  ASSERT_TRUE(image.ok());
+  EXPECT_FLOAT_EQ((*image)->pixels[0], 0.6f);  // timestep 6's frame
+  EXPECT_FALSE((*strided)->warnings().empty());
+
+  options = {};
+  options.train_cameras = 2;
+  auto sparse = MakeInMemoryDataset("video", frames, options);
+  ASSERT_TRUE(sparse.ok()) << sparse.status().ToString();
+  std::set<int> cams;
+  for (const View& v : (*sparse)->train_views()) cams.insert(v.camera_id);
+  EXPECT_EQ(cams, (std::set<int>{2, 9}));  // ids[0], ids[2] of {2, 5, 9, 11}
+  EXPECT_EQ((*sparse)->train_views().size(), 2u * 7);
+  EXPECT_EQ((*sparse)->test_views().size(), 7u);
+  EXPECT_EQ((*sparse)->timestep_count(), 7);
+  options.train_cameras = 4;
+  EXPECT_EQ(MakeInMemoryDataset("video", frames, options).value()->train_views().size(), 4u * 7);
+  options.train_cameras = 5;
+  auto too_many = MakeInMemoryDataset("video", frames, options);
+  EXPECT_EQ(too_many.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(too_many.status().message().find("4"), std::string::npos) << too_many.status().ToString();
+  options = {};
+  options.timestep_stride = 0;
+  EXPECT_EQ(MakeInMemoryDataset("video", frames, options).status().code(), StatusCode::kInvalidArgument);
+  options.timestep_stride = 1;
+  options.train_cameras = -1;
+  EXPECT_EQ(MakeInMemoryDataset("video", frames, options).status().code(), StatusCode::kInvalidArgument);
+}
+
+TEST(Panoptic, TimestepStrideAndSparseTrainCameras) {
+  ATEX_REQUIRE_DATA_FILE(root, "panoptic_basketball/train_meta.json");
+  DatasetOptions options;
+  options.max_timesteps = 9;
+  options.timestep_stride = 4;
+  options.train_cameras = 6;
+  auto dataset = OpenDataset(root.parent_path().string(), options);
+  ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
+  const Dataset& d = **dataset;
+  EXPECT_EQ(d.timestep_count(), 3);  // timesteps 0, 4, 8
+  EXPECT_EQ(d.train_views().size(), 6u * 3);
+  EXPECT_EQ(d.test_views().size(), 4u * 3);
+  std::set<int> cams;
+  for (const View& v : d.train_views()) cams.insert(v.camera_id);
+  // The 27 training cameras 1-9, 11-14, 16-29: ids[0], ids[4], ... ids[22].
+  EXPECT_EQ(cams, (std::set<int>{1, 5, 9, 14, 19, 24}));
+  EXPECT_DOUBLE_EQ(d.test_views().back().camera.time, 1.0);  // t = 8 of 0..8
+  EXPECT_EQ(d.test_views().back().timestep, 2);
+}
+
+TEST(LegoNpz, TimestepStrideIsRefusedTrainCamerasSelectFrames) {
+  ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  DatasetOptions options;
+  options.timestep_stride = 2;
+  auto strided = OpenDataset(path.string(), options);
+  EXPECT_EQ(strided.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(strided.status().message().find("stride"), std::string::npos) << strided.status().ToString();
+  options.timestep_stride = 1;
+  options.train_cameras = 10;
+  auto sparse = OpenDataset(path.string(), options);
+  ASSERT_TRUE(sparse.ok()) << sparse.status().ToString();
+  EXPECT_EQ((*sparse)->train_views().size(), 10u);
+  EXPECT_EQ((*sparse)->train_views()[1].camera_id, 5);
+  EXPECT_EQ((*sparse)->timestep_count(), 10);
+  EXPECT_EQ((*sparse)->test_views().size(), 20u);
+}
+
 }  // namespace
 }  // namespace atex

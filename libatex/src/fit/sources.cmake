@@ -1,4 +1,12 @@
-# Module 'fit': sources appended to libatex; tests registered in atex_fit_tests().
-list(APPEND ATEX_LIB_SOURCES)
+# Module 'fit': the budget fitter (atex/fit.h, docs/fit.md). Sources appended to
+# libatex; tests registered in atex_fit_tests().
+list(APPEND ATEX_LIB_SOURCES
+  ${CMAKE_CURRENT_LIST_DIR}/byte_size.cc
+  ${CMAKE_CURRENT_LIST_DIR}/levers.cc
+  ${CMAKE_CURRENT_LIST_DIR}/plan.cc
+  ${CMAKE_CURRENT_LIST_DIR}/probes.cc
+  ${CMAKE_CURRENT_LIST_DIR}/texture_shrink.cc)
 function(atex_fit_tests)
+  set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
+  atex_add_test(NAME fit_test LABELS fit SOURCES ${dir}/fit_test.cc LIBS atex)
 endfunction()

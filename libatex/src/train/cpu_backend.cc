@@ -3,6 +3,7 @@
 // every training feature testable without a GPU.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "atex/deform.h"
 #include "atex/detail/adam.h"
@@ -178,6 +179,14 @@ class CpuBackend final : public Backend {
                                                  camera.height, request.lambda_dssim, grad_image.data());
       photometric += loss / batch;
       for (float& g : grad_image) g /= batch;
+      // A NaN/Inf in the loss or dL/dimage (e.g. a corrupt target frame) is reported as a
+      // non-finite step, like one in the parameter gradients, so that the loop rolls back;
+      // RenderBackward would otherwise refuse the gradient with an error and end training.
+      if (!std::isfinite(loss) || !AllFinite(grad_image)) {
+        result.photometric_loss = result.loss = std::numeric_limits<double>::quiet_NaN();
+        result.finite = false;
+        return result;
+      }
       double sse = 0;
       for (size_t k = 0; k < out.color.size(); ++k) {
         const double d = double(out.color[k]) - target.pixels[k];

@@ -128,7 +128,17 @@ class Loop {
     for (Phase phase : phases) {
       if (summary_.stopped_by_time_limit) break;
       const int first = phase == start_phase ? start_step : 0;
-      if (phase == Phase::kTextures && first == 0) ATEX_RETURN_IF_ERROR(AttachTextures());
+      if (phase == Phase::kTextures && first == 0) {
+        if (initial != nullptr && initial->textures && !(options_.stages & kStage1) && options_.resume_dir.empty()) {
+          // Fine-tuning an asset that already has its pool (e.g. `atex fit --finetune`): keep it.
+          texel_budget_ = initial->textures->texel_count();
+          has_texture_pool_ = true;
+          Event(StrCat("kept the initial asset's ", initial->textures->texel_count(), " texels"));
+        } else if (config_.stage2.textures != TextureMode::kNone) {
+          ATEX_RETURN_IF_ERROR(AttachTextures());
+        }
+      }
+      if (phase == Phase::kTextures && first > 0) has_texture_pool_ = config_.stage2.textures != TextureMode::kNone;
       ATEX_RETURN_IF_ERROR(RunPhase(phase, first));
     }
     return Finish();
@@ -203,6 +213,7 @@ class Loop {
                                                        static_cast<double>(canonical.size())));
     Event(StrCat("attached ", TextureModeName(config_.stage2.textures), " textures to ", canonical.size(),
                  " Gaussians (texel budget ", texel_budget_, ")"));
+    has_texture_pool_ = true;
     return backend_.AttachTextures(pool);
   }
 
@@ -231,14 +242,14 @@ class Loop {
       r.learning_rates[kGroupGrid] = (textures ? lr.grid.final : lr.grid.At(step)) * lr_scale_;
       r.learning_rates[kGroupMlp] = (textures ? lr.mlp.final : lr.mlp.At(step)) * lr_scale_;
     }
-    if (textures) r.learning_rates[kGroupTexels] = lr.texels * lr_scale_;
+    if (textures && has_texture_pool_) r.learning_rates[kGroupTexels] = lr.texels * lr_scale_;
     // SH degree grows by one every interval of stage-1 steps (it persists into stage 2).
     const int64_t sh_steps = phase == Phase::kCoarse ? step : s1.coarse_iterations + step;
     r.active_sh_degree = textures ? s1.sh_degree
                                   : static_cast<int>(std::min<int64_t>(
                                         s1.sh_degree, sh_steps / std::max(1, s1.sh_increase_interval)));
     r.apply_deformation = phase != Phase::kCoarse;
-    r.use_textures = textures;
+    r.use_textures = textures && has_texture_pool_;
     r.lambda_dssim = textures ? config_.stage2.lambda_dssim : s1.lambda_dssim;
     if (phase == Phase::kFine || textures) {
       r.plane_tv = s1.regularizer.plane_tv;
@@ -246,7 +257,7 @@ class Loop {
       r.time_l1 = s1.regularizer.time_l1;
     }
     r.accumulate_densify_stats = !textures && s1.densify.enabled && step < s1.densify.until_step;
-    r.accumulate_texture_stats = textures && config_.stage2.textures == TextureMode::kAdaptive;
+    r.accumulate_texture_stats = textures && has_texture_pool_ && config_.stage2.textures == TextureMode::kAdaptive;
     r.time_bins = config_.stage2.time_bins;
     r.time_min = data_.time_min();
     r.time_max = data_.time_max();
@@ -363,7 +374,7 @@ class Loop {
     const int done = step + 1;
     if (phase == Phase::kTextures) {
       const auto& steps = config_.stage2.growth_steps;
-      if (config_.stage2.textures != TextureMode::kAdaptive ||
+      if (config_.stage2.textures != TextureMode::kAdaptive || !has_texture_pool_ ||
           std::find(steps.begin(), steps.end(), done) == steps.end()) {
         return Status::Ok();
       }
@@ -421,7 +432,7 @@ class Loop {
     RenderRequest r;
     r.active_sh_degree = config_.stage1.sh_degree;
     r.apply_deformation = phase != Phase::kCoarse;
-    r.use_textures = phase == Phase::kTextures;
+    r.use_textures = phase == Phase::kTextures && has_texture_pool_;
     r.background = config_.background;
     r.near_plane = config_.near_plane;
     return r;
@@ -514,6 +525,7 @@ class Loop {
   Clock::time_point run_start_ = Clock::now();
   int64_t total_steps_ = 0;  // steps over all phases: drives the camera schedule
   uint64_t texel_budget_ = 0;
+  bool has_texture_pool_ = false;  // stage 2 trains a texture pool (false: stage 2 of plain 4DGS)
 };
 
 }  // namespace

@@ -1,0 +1,177 @@
+// Fitting an asset to a byte budget (`atex fit`; docs/fit.md explains the method).
+//
+// The fitter trims capacity with five levers and spends the budget where it
+// matters most:
+//   prune        remove the least important Gaussians (accumulated blending weight),
+//   textures     shrink textures one axis at a time, least damage per texel first,
+//   sh           lower the SH degree of every Gaussian,
+//   encoding     store an attribute stream with fewer bits (f32 → f16 / q16 → q8),
+//   grid         halve the spatial resolution of the deformation grids.
+// A plan is built greedily: at every step each lever proposes its next move, the
+// move is applied, the asset is encoded (exact file bytes) and decoded (exact
+// stored values) and rendered from a fixed set of probe views; the move with the
+// smallest increase of distortion per byte saved wins. Distortion is the mean
+// squared difference to the untrimmed asset's renders of the same probes: the
+// dataset's training views when one is given, else orbit views around the scene
+// (the documented proxy). The plan is deterministic (the same input, options and
+// backend results give the same plan), so one plan serves every budget above its
+// floor, and smaller budgets give subsets of the moves of larger ones.
+//
+// Guarantees: a fitted asset's encoded size is at most the budget (checked on the
+// exact bytes, not estimated) and the asset passes ValidateAsset; a budget below
+// the smallest valid asset for the input fails with kOutOfRange naming that size.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "atex/camera.h"
+#include "atex/container.h"
+#include "atex/image.h"
+#include "atex/model.h"
+#include "atex/status.h"
+#include "atex/train/backend.h"
+
+namespace atex::fit {
+
+enum class Lever : int { kPrune = 0, kTextures = 1, kShDegree = 2, kEncoding = 3, kGrid = 4 };
+const char* LeverName(Lever lever);
+
+// The attribute streams whose encoding the fitter may change (WriteOptions fields).
+enum class Stream : int {
+  kPositions = 0, kRotations, kLogScales, kOpacities, kShDc, kShRest, kTexels, kDeformationGrids, kCount
+};
+const char* StreamName(Stream stream);
+ScalarEncoding GetEncoding(const WriteOptions& options, Stream stream);
+void SetEncoding(WriteOptions* options, Stream stream, ScalarEncoding encoding);
+
+// One move of a plan.
+struct Move {
+  Lever lever = Lever::kPrune;
+  uint64_t count = 0;                 // prune: Gaussians removed; textures: shrink operations (one axis halved each)
+  Stream stream = Stream::kPositions;  // encoding: which stream
+  ScalarEncoding encoding = ScalarEncoding::kFloat32;  // encoding: its new encoding
+  // Measured after the move (cumulative): exact file bytes and probe distortion.
+  uint64_t bytes_after = 0;
+  double distortion_after = 0;        // mean squared error to the untrimmed renders, over probes
+  bool divisible() const { return lever == Lever::kPrune || lever == Lever::kTextures; }
+};
+std::string DescribeMove(const Move& move);
+
+// Views the distortion is measured from, and the reference renders of the untrimmed asset.
+struct Probe {
+  Camera camera;  // includes the time
+};
+
+// Orbit probes around the asset (no dataset): `count` cameras on a sphere around the
+// robust centre of the Gaussians (5th–95th percentile box) at 2.5 × its half-diagonal,
+// `width`×`height` pixels, 50° vertical field of view, times spread evenly over the
+// asset's time range. Deterministic.
+std::vector<Probe> OrbitProbes(const Asset& asset, int count, int width, int height);
+// Camera re-scaled to at most `max_side` pixels on its longer side (intrinsics scaled).
+Camera ScaleCamera(const Camera& camera, int max_side);
+
+// Renders assets through a training backend (CPU or CUDA).
+class ProbeRenderer {
+ public:
+  ProbeRenderer(train::Backend* backend, std::vector<Probe> probes) : backend_(backend), probes_(std::move(probes)) {}
+  const std::vector<Probe>& probes() const { return probes_; }
+  // Renders every probe (renders are not clamped; the background is the asset's).
+  StatusOr<std::vector<Image>> Render(const Asset& asset);
+  // Renders `cameras` and returns one image per camera.
+  StatusOr<std::vector<Image>> RenderCameras(const Asset& asset, const std::vector<Camera>& cameras);
+
+ private:
+  train::Backend* backend_;
+  std::vector<Probe> probes_;
+};
+
+// Mean over images of the per-pixel, per-channel squared difference (renders clamped to [0, 1]).
+StatusOr<double> MeanSquaredError(const std::vector<Image>& a, const std::vector<Image>& b);
+
+struct FitProgress {
+  int move = 0;              // moves accepted so far
+  uint64_t bytes = 0;        // current exact size
+  uint64_t target_bytes = 0; // the floor the plan is built to
+  std::string text;          // what happened
+};
+
+struct PlanOptions {
+  WriteOptions write;              // codec, zstd level and the starting encodings
+  uint64_t floor_bytes = 0;        // build moves until the asset is at most this big
+  double prune_fraction = 0.10;    // a prune move removes this fraction of the current Gaussians (at least 1)
+  double texture_fraction = 0.10;  // a texture move removes about this fraction of the current texels
+  uint64_t seed = 6666;            // breaks importance ties deterministically
+  int min_grid_resolution = 4;     // the grid lever stops here (spatial axes)
+  std::function<void(const FitProgress&)> progress;
+  // Called after each accepted move with the current (trimmed, decoded) asset; return
+  // false to stop building (the --quality mode evaluates test PSNR here).
+  std::function<StatusOr<bool>(const Asset& decoded, const Move& move)> accept_more;
+};
+
+struct Plan {
+  uint64_t initial_bytes = 0;
+  double initial_distortion = 0;  // of the input re-encoded with the starting encodings (0 for lossless)
+  std::vector<Move> moves;
+  std::vector<uint32_t> prune_order;  // Gaussians (input indices) in the order prune moves remove them
+};
+
+// Fills asset->stats->importance when it is missing (assets converted from other
+// formats): the accumulated blending weight over `probes`, measured with the CPU
+// reference renderer. Assets trained by `atex train` carry it already.
+Status EnsureImportance(Asset* asset, const std::vector<Probe>& probes);
+
+// The importance order of `asset`: Gaussian indices by ascending importance
+// (stats.importance, all zero when missing; ties broken by a hash of (seed, index)).
+std::vector<uint32_t> ImportanceOrder(const Asset& asset, uint64_t seed);
+
+// The encodings of the streams of an encoded asset (a file's current precision),
+// with `base`'s codec settings. Streams the file lacks keep `base`'s encoding.
+StatusOr<WriteOptions> EncodingsOfFile(const uint8_t* data, size_t size, const WriteOptions& base);
+
+// Smallest valid asset for `asset`'s structure: one Gaussian (the most important),
+// SH degree 0, 1×1 textures, every stream q8, grids at the minimum resolution.
+StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, int min_grid_resolution = 4);
+
+// Builds the plan (see the file comment). `renderer` measures distortion.
+StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const PlanOptions& options);
+
+// The result of applying a plan to a budget.
+struct Fitted {
+  Asset asset;                 // the trimmed asset as decoded from `bytes` (what a reader gets)
+  std::vector<uint8_t> bytes;  // the encoded file, size <= budget
+  WriteOptions write;          // encodings used
+  std::vector<Move> moves;     // the plan's moves that were applied (the last one possibly partial)
+  std::vector<uint32_t> kept;  // input indices of the Gaussians kept, ascending
+};
+
+// Applies moves of `plan` in order until the encoded asset fits `budget_bytes`; the
+// last divisible move is bisected so that as little as needed is removed. Fails with
+// kOutOfRange when even the whole plan does not fit (the message names the smallest
+// size reached).
+StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes);
+
+// Keeps the ceil(fraction · N) most important Gaussians of `order` (ascending
+// importance, e.g. ImportanceOrder of a shared stage-1 asset): the paper's
+// fixed-count protocol. `order` must be a permutation of 0..N-1.
+StatusOr<Asset> KeepMostImportant(const Asset& asset, const std::vector<uint32_t>& order, double fraction,
+                                  std::vector<uint32_t>* kept = nullptr);
+
+// Applies one move to an undecoded asset and its encodings (exposed for tests).
+Status ApplyMove(const Move& move, const std::vector<uint32_t>& prune_order, Asset* asset, WriteOptions* write,
+                 std::vector<uint32_t>* kept, int min_grid_resolution = 4);
+
+// "80MiB", "80 MB", "1.5GiB", "500KiB", "123456" (bytes; also "B", "KB", "GB" and the
+// single letters K, M, G meaning binary units). kInvalidArgument names the text.
+StatusOr<uint64_t> ParseByteSize(const std::string& text);
+
+// Report helpers.
+nlohmann::json MoveToJson(const Move& move);
+nlohmann::json ComponentsToJson(const std::vector<uint8_t>& encoded);
+
+}  // namespace atex::fit

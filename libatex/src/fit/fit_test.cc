@@ -1,0 +1,278 @@
+// The budget fitter: texture shrinking, the levers, plans and budgets.
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "atex/container.h"
+#include "atex/fit.h"
+#include "atex/render.h"
+#include "atex/train/backend.h"
+#include "container/synthetic_asset.h"
+#include "fit/levers.h"
+#include "fit/texture_shrink.h"
+
+namespace atex::fit {
+namespace {
+
+Asset SmallAsset(container::SyntheticTextures textures, uint64_t seed = 3, size_t n = 240) {
+  container::SyntheticAssetOptions o;
+  o.seed = seed;
+  o.gaussians = n;
+  o.sh_degree = 2;
+  o.textures = textures;
+  o.sh_head = true;
+  return container::MakeSyntheticAsset(o);
+}
+
+TEST(TextureShrink, RepresentableFieldsShrinkExactly) {
+  // A raw field linear along u is exactly representable on 2 samples: shrinking 4 → 2 loses nothing.
+  float src[1 * 4 * 4];
+  for (int x = 0; x < 4; ++x)
+    for (int c = 0; c < 4; ++c) src[x * 4 + c] = 0.3f * c - 0.5f + 0.9f * x / 3.0f;
+  EXPECT_LT(ShrinkResidual(src, 1, 4, 1, 2), 1e-14);
+  EXPECT_GT(ShrinkResidual(src, 1, 4, 1, 1), 1e-6) << "a constant cannot hold a ramp";
+  float constant[2 * 2 * 4];
+  for (float& v : constant) v = 0.3f;
+  EXPECT_LT(ShrinkResidual(constant, 2, 2, 1, 1), 1e-14);
+  float out[4];
+  ShrinkTexture(constant, 2, 2, out, 1, 1);
+  for (float v : out) EXPECT_NEAR(v, 0.3f, 1e-6);
+}
+
+TEST(TextureShrink, LeastSquaresBeatsCornerSampling) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-2, 2);
+  for (int trial = 0; trial < 20; ++trial) {
+    float src[16 * 4];
+    for (float& v : src) v = u(rng);
+    const double ls = ShrinkResidual(src, 4, 4, 2, 2);
+    // Corner sampling: what plain resampling (detail::UpsampleTexture to a smaller grid) keeps.
+    float corners[2 * 2 * 4], back[16 * 4];
+    detail::UpsampleTexture(src, 4, 4, corners, 2, 2, 4);
+    detail::UpsampleTexture(corners, 2, 2, back, 4, 4, 4);
+    double naive = 0;
+    for (int k = 0; k < 64; ++k) {
+      const double d = 0.1 * (std::tanh(back[k]) - std::tanh(src[k]));
+      naive += d * d;
+    }
+    EXPECT_LE(ls, naive / 64 + 1e-12);
+  }
+}
+
+TEST(TextureShrink, GreedyOrderAndLimits) {
+  Asset a = SmallAsset(container::SyntheticTextures::kMixed);
+  const uint64_t before = a.textures->texel_count();
+  const uint64_t shrinkable = ShrinkableTexels(*a.textures);
+  ASSERT_GT(shrinkable, 0u);
+  ASSERT_TRUE(ShrinkTextures(&a, 10).ok());
+  EXPECT_LT(a.textures->texel_count(), before);
+  EXPECT_TRUE(ValidateAsset(a).ok());
+  auto done = ShrinkTextures(&a, ~uint64_t{0});
+  ASSERT_TRUE(done.ok());
+  EXPECT_EQ(a.textures->texel_count(), a.textures->size()) << "everything ends 1x1";
+  EXPECT_TRUE(ValidateAsset(a).ok());
+}
+
+TEST(Levers, ShDegreeAndGridKeepAssetsValid) {
+  Asset a = SmallAsset(container::SyntheticTextures::kMixed);
+  ASSERT_TRUE(a.deformation->config.heads[kHeadSH]);
+  while (a.gaussians.sh_degree > 0) {
+    ASSERT_TRUE(LowerShDegree(&a).ok());
+    ASSERT_TRUE(ValidateAsset(a).ok()) << ValidateAsset(a).ToString();
+  }
+  EXPECT_FALSE(LowerShDegree(&a).ok());
+  int halvings = 0;
+  while (CanCoarsenGrid(a, 4)) {
+    ASSERT_TRUE(CoarsenGrid(&a, 4).ok());
+    ASSERT_TRUE(ValidateAsset(a).ok());
+    ++halvings;
+  }
+  EXPECT_GT(halvings, 0);
+  EXPECT_FALSE(CoarsenGrid(&a, 4).ok());
+}
+
+TEST(Levers, CoarsenGridKeepsAConstantFieldExactly) {
+  Asset a = SmallAsset(container::SyntheticTextures::kNone);
+  for (auto& scale : a.deformation->planes)
+    for (auto& plane : scale) std::fill(plane.begin(), plane.end(), 0.7f);
+  ASSERT_TRUE(CoarsenGrid(&a, 2).ok());
+  for (auto& scale : a.deformation->planes)
+    for (auto& plane : scale)
+      for (float v : plane) ASSERT_NEAR(v, 0.7f, 1e-6);
+}
+
+struct PlanFixture {
+  Asset asset;
+  std::unique_ptr<train::Backend> backend;
+  std::unique_ptr<ProbeRenderer> renderer;
+  Plan plan;
+  WriteOptions write;
+  uint64_t minimum = 0;
+};
+
+PlanFixture MakePlan(container::SyntheticTextures textures, uint64_t seed) {
+  PlanFixture f;
+  f.asset = SmallAsset(textures, seed);
+  f.backend = train::MakeCpuBackend();
+  f.renderer = std::make_unique<ProbeRenderer>(f.backend.get(), OrbitProbes(f.asset, 4, 40, 30));
+  f.write.write_stats = false;
+  auto minimum = MinimumBytes(f.asset, f.write);
+  EXPECT_TRUE(minimum.ok()) << minimum.status().ToString();
+  f.minimum = *minimum;
+  PlanOptions o;
+  o.write = f.write;
+  o.floor_bytes = f.minimum;
+  o.prune_fraction = 0.2;
+  o.texture_fraction = 0.3;
+  auto plan = BuildPlan(f.asset, f.renderer.get(), o);
+  EXPECT_TRUE(plan.ok()) << plan.status().ToString();
+  f.plan = std::move(*plan);
+  return f;
+}
+
+TEST(Plan, UsesEveryLeverAndShrinksMonotonically) {
+  PlanFixture f = MakePlan(container::SyntheticTextures::kMixed, 5);
+  ASSERT_FALSE(f.plan.moves.empty());
+  std::set<Lever> used;
+  uint64_t previous = f.plan.initial_bytes;
+  for (const Move& m : f.plan.moves) {
+    used.insert(m.lever);
+    EXPECT_LT(m.bytes_after, previous) << DescribeMove(m);
+    previous = m.bytes_after;
+  }
+  for (Lever l : {Lever::kPrune, Lever::kTextures, Lever::kShDegree, Lever::kEncoding, Lever::kGrid}) {
+    EXPECT_TRUE(used.count(l)) << "lever " << LeverName(l) << " never chosen";
+  }
+  // The plan reaches within a few percent of the smallest valid asset.
+  EXPECT_LE(f.plan.moves.back().bytes_after, f.minimum * 11 / 10 + 512);
+}
+
+TEST(Plan, ThousandRandomBudgetsNeverOver) {
+  for (auto textures : {container::SyntheticTextures::kMixed, container::SyntheticTextures::kNone}) {
+    PlanFixture f = MakePlan(textures, 11);
+    const uint64_t lo = f.plan.moves.back().bytes_after, hi = f.plan.initial_bytes + 100;
+    std::mt19937_64 rng(textures == container::SyntheticTextures::kNone ? 1 : 2);
+    for (int trial = 0; trial < 500; ++trial) {
+      const uint64_t budget = lo + rng() % (hi - lo + 1);
+      auto fitted = ApplyPlan(f.asset, f.plan, f.write, budget);
+      ASSERT_TRUE(fitted.ok()) << budget << ": " << fitted.status().ToString();
+      ASSERT_LE(fitted->bytes.size(), budget);
+      // Valid: it decodes (a full reader pass) and validates.
+      auto decoded = DecodeAsset(fitted->bytes.data(), fitted->bytes.size());
+      ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+      ASSERT_TRUE(ValidateAsset(*decoded).ok());
+      ASSERT_EQ(fitted->kept.size(), decoded->gaussians.size());
+    }
+    // Below what the plan reaches: a clear error, never an oversized file.
+    auto too_small = ApplyPlan(f.asset, f.plan, f.write, lo - 1);
+    EXPECT_FALSE(too_small.ok());
+    EXPECT_NE(too_small.status().message().find(std::to_string(lo)), std::string::npos);
+  }
+}
+
+TEST(Plan, SmallerBudgetsNeverReduceDistortion) {
+  PlanFixture f = MakePlan(container::SyntheticTextures::kMixed, 17);
+  // Distortion measured independently of the plan's own bookkeeping.
+  auto reference = f.renderer->Render(f.asset);
+  ASSERT_TRUE(reference.ok());
+  double previous = -1;
+  const uint64_t lo = f.plan.moves.back().bytes_after;
+  for (int k = 10; k >= 0; --k) {
+    const uint64_t budget = lo + (f.plan.initial_bytes - lo) * k / 10;
+    auto fitted = ApplyPlan(f.asset, f.plan, f.write, budget);
+    ASSERT_TRUE(fitted.ok());
+    auto renders = f.renderer->Render(fitted->asset);
+    ASSERT_TRUE(renders.ok());
+    const double mse = *MeanSquaredError(*renders, *reference);
+    // Greedy prefixes: a move may rarely help by chance; allow 2% slack on the way down.
+    EXPECT_GE(mse, previous * 0.98 - 1e-9) << "budget " << budget;
+    previous = std::max(previous, mse);
+  }
+}
+
+TEST(Plan, BudgetBelowTheMinimumIsNamed) {
+  Asset a = SmallAsset(container::SyntheticTextures::kMixed, 23);
+  WriteOptions w;
+  auto minimum = MinimumBytes(a, w);
+  ASSERT_TRUE(minimum.ok());
+  EXPECT_GT(*minimum, 100u);
+  // The minimum itself is a valid asset: one Gaussian, degree 0, 1x1 textures, q8.
+  auto backend = train::MakeCpuBackend();
+  ProbeRenderer renderer(backend.get(), OrbitProbes(a, 2, 16, 12));
+  PlanOptions o;
+  o.write = w;
+  o.floor_bytes = *minimum;
+  o.prune_fraction = 0.5;
+  o.texture_fraction = 1.0;
+  auto plan = BuildPlan(a, &renderer, o);
+  ASSERT_TRUE(plan.ok());
+  EXPECT_LE(plan->moves.back().bytes_after, *minimum) << "the plan reaches the minimum";
+}
+
+TEST(KeepCount, SubsetsAreIdenticalAcrossTextureModes) {
+  // One stage-1 model, three stage-2 variants with different statistics: the shared order
+  // from the stage-1 model selects the same Gaussians in each.
+  Asset stage1 = SmallAsset(container::SyntheticTextures::kNone, 31);
+  const std::vector<uint32_t> order = ImportanceOrder(stage1, 6666);
+  for (double fraction : {0.25, 0.5}) {
+    std::vector<std::vector<uint32_t>> kept_sets;
+    for (auto textures : {container::SyntheticTextures::kNone, container::SyntheticTextures::kUniform,
+                          container::SyntheticTextures::kMixed}) {
+      Asset variant = SmallAsset(textures, 31);
+      for (float& v : variant.stats->importance) v = 1.0f - v;  // a different order of its own
+      std::vector<uint32_t> kept;
+      auto subset = KeepMostImportant(variant, order, fraction, &kept);
+      ASSERT_TRUE(subset.ok());
+      EXPECT_EQ(subset->gaussians.size(), static_cast<size_t>(std::ceil(fraction * stage1.gaussians.size())));
+      EXPECT_TRUE(ValidateAsset(*subset).ok());
+      kept_sets.push_back(kept);
+    }
+    EXPECT_EQ(kept_sets[0], kept_sets[1]);
+    EXPECT_EQ(kept_sets[0], kept_sets[2]);
+  }
+  // The kept ones are the most important of the shared order.
+  std::vector<uint32_t> kept;
+  ASSERT_TRUE(KeepMostImportant(stage1, order, 0.25, &kept).ok());
+  float min_kept = 1e30f, max_dropped = -1e30f;
+  std::vector<uint8_t> is_kept(stage1.gaussians.size(), 0);
+  for (uint32_t i : kept) is_kept[i] = 1;
+  for (size_t i = 0; i < is_kept.size(); ++i) {
+    const float imp = stage1.stats->importance[i];
+    if (is_kept[i]) min_kept = std::min(min_kept, imp);
+    else max_dropped = std::max(max_dropped, imp);
+  }
+  EXPECT_GE(min_kept, max_dropped);
+  EXPECT_FALSE(KeepMostImportant(stage1, order, 0.0).ok());
+  EXPECT_FALSE(KeepMostImportant(stage1, std::vector<uint32_t>(3, 0), 0.5).ok());
+}
+
+TEST(Importance, MeasuredWhenMissing) {
+  Asset a = SmallAsset(container::SyntheticTextures::kMixed, 41);
+  a.stats.reset();
+  ASSERT_TRUE(EnsureImportance(&a, OrbitProbes(a, 3, 24, 18)).ok());
+  ASSERT_TRUE(a.stats);
+  double total = 0;
+  for (float v : a.stats->importance) total += v;
+  EXPECT_GT(total, 0.0);
+}
+
+}  // namespace
+}  // namespace atex::fit
+
+namespace atex::fit {
+namespace {
+
+TEST(ByteSize, ParsesUnitsAndRefusesNonsense) {
+  EXPECT_EQ(*ParseByteSize("123456"), 123456u);
+  EXPECT_EQ(*ParseByteSize("80MiB"), 80u * 1048576u);
+  EXPECT_EQ(*ParseByteSize("80 MB"), 80000000u);
+  EXPECT_EQ(*ParseByteSize("1.5GiB"), 1610612736u);
+  EXPECT_EQ(*ParseByteSize("2k"), 2048u);
+  for (const char* bad : {"", "MiB", "12XB", "1.2.3MB", "-5MB", "0", "0.2"}) {
+    EXPECT_FALSE(ParseByteSize(bad).ok()) << bad;
+  }
+}
+
+}  // namespace
+}  // namespace atex::fit

@@ -1,0 +1,149 @@
+#include "levers.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "atex/deform.h"
+
+namespace atex::fit {
+namespace {
+
+template <typename T>
+std::vector<T> SubsetRows(const std::vector<T>& values, size_t rows, const std::vector<uint8_t>& keep) {
+  if (rows == 0 || values.empty()) return {};
+  const size_t width = values.size() / rows;
+  std::vector<T> out;
+  out.reserve(values.size());
+  for (size_t i = 0; i < rows; ++i) {
+    if (keep[i]) out.insert(out.end(), values.begin() + i * width, values.begin() + (i + 1) * width);
+  }
+  return out;
+}
+
+// Bilinear, align-corners sample of a [rows][cols] plane at fractional (y, x) in index units.
+float SamplePlane(const float* plane, int rows, int cols, double y, double x) {
+  const int x0 = std::clamp(static_cast<int>(std::floor(x)), 0, cols - 1), x1 = std::min(x0 + 1, cols - 1);
+  const int y0 = std::clamp(static_cast<int>(std::floor(y)), 0, rows - 1), y1 = std::min(y0 + 1, rows - 1);
+  const double fx = std::clamp(x - x0, 0.0, 1.0), fy = std::clamp(y - y0, 0.0, 1.0);
+  const double top = plane[y0 * cols + x0] * (1 - fx) + plane[y0 * cols + x1] * fx;
+  const double bottom = plane[y1 * cols + x0] * (1 - fx) + plane[y1 * cols + x1] * fx;
+  return static_cast<float>(top * (1 - fy) + bottom * fy);
+}
+
+int Coarser(int resolution, int min_resolution) {
+  return std::max(std::min(resolution, min_resolution), (resolution + 1) / 2);
+}
+
+}  // namespace
+
+Asset SubsetGaussians(const Asset& asset, const std::vector<uint8_t>& keep) {
+  const size_t n = asset.gaussians.size();
+  Asset out;
+  out.metadata = asset.metadata;
+  out.deformation = asset.deformation;
+  const Gaussians& g = asset.gaussians;
+  out.gaussians.sh_degree = g.sh_degree;
+  out.gaussians.positions = SubsetRows(g.positions, n, keep);
+  out.gaussians.rotations = SubsetRows(g.rotations, n, keep);
+  out.gaussians.log_scales = SubsetRows(g.log_scales, n, keep);
+  out.gaussians.opacity_logits = SubsetRows(g.opacity_logits, n, keep);
+  out.gaussians.sh = SubsetRows(g.sh, n, keep);
+  if (asset.textures) {
+    const TexturePool& t = *asset.textures;
+    TexturePool p;
+    p.heights = SubsetRows(t.heights, n, keep);
+    p.widths = SubsetRows(t.widths, n, keep);
+    p.axis_u = SubsetRows(t.axis_u, n, keep);
+    p.axis_v = SubsetRows(t.axis_v, n, keep);
+    p.RebuildOffsets();
+    p.texels.reserve(p.texel_count() * kTexelChannels);
+    for (size_t i = 0; i < n; ++i) {
+      if (!keep[i]) continue;
+      p.texels.insert(p.texels.end(), t.texels.begin() + static_cast<std::ptrdiff_t>(t.offsets[i] * kTexelChannels),
+                      t.texels.begin() + static_cast<std::ptrdiff_t>(t.offsets[i + 1] * kTexelChannels));
+    }
+    out.textures = std::move(p);
+  }
+  if (asset.stats) {
+    const GaussianStats& s = *asset.stats;
+    GaussianStats o;
+    o.texture_demand = s.texture_demand.size() == n ? SubsetRows(s.texture_demand, n, keep) : std::vector<float>{};
+    o.peak_scale_u = s.peak_scale_u.size() == n ? SubsetRows(s.peak_scale_u, n, keep) : std::vector<float>{};
+    o.peak_scale_v = s.peak_scale_v.size() == n ? SubsetRows(s.peak_scale_v, n, keep) : std::vector<float>{};
+    o.importance = s.importance.size() == n ? SubsetRows(s.importance, n, keep) : std::vector<float>{};
+    out.stats = std::move(o);
+  }
+  return out;
+}
+
+Status LowerShDegree(Asset* asset) {
+  Gaussians& g = asset->gaussians;
+  if (g.sh_degree == 0) return MakeError(StatusCode::kInvalidArgument, "SH degree is already 0");
+  const size_t n = g.size();
+  const int old_k = g.sh_coeffs(), new_k = ShCoeffCount(g.sh_degree - 1);
+  std::vector<float> sh(n * new_k * 3);
+  for (size_t i = 0; i < n; ++i) {
+    std::copy_n(g.sh.begin() + static_cast<std::ptrdiff_t>(i * old_k * 3), new_k * 3,
+                sh.begin() + static_cast<std::ptrdiff_t>(i * new_k * 3));
+  }
+  g.sh = std::move(sh);
+  g.sh_degree -= 1;
+  if (asset->deformation) {
+    DeformationField& d = *asset->deformation;
+    if (d.config.heads[kHeadSH]) {
+      // dSH is [K][3] like the coefficients (docs/conventions.md §3): keep the first 3K' rows.
+      Linear& out = d.heads[kHeadSH][1];
+      out.weight.resize(static_cast<size_t>(new_k) * 3 * out.in);
+      out.bias.resize(static_cast<size_t>(new_k) * 3);
+      out.out = new_k * 3;
+      d.config.sh_coeffs = new_k;
+    } else if (d.config.sh_coeffs == old_k) {
+      d.config.sh_coeffs = new_k;
+    }
+  }
+  return Status::Ok();
+}
+
+bool CanCoarsenGrid(const Asset& asset, int min_resolution) {
+  if (!asset.deformation) return false;
+  const auto& r = asset.deformation->config.grid.base_resolution;
+  for (int a = 0; a < 3; ++a) {
+    if (Coarser(r[a], min_resolution) < r[a]) return true;
+  }
+  return false;
+}
+
+Status CoarsenGrid(Asset* asset, int min_resolution) {
+  if (!CanCoarsenGrid(*asset, min_resolution)) {
+    return MakeError(StatusCode::kInvalidArgument, "deformation grids are already at the minimum resolution");
+  }
+  DeformationField& d = *asset->deformation;
+  const HexPlaneConfig old_grid = d.config.grid;
+  HexPlaneConfig new_grid = old_grid;
+  for (int a = 0; a < 3; ++a) new_grid.base_resolution[a] = Coarser(old_grid.base_resolution[a], min_resolution);
+  const int channels = old_grid.channels;
+  for (int s = 0; s < old_grid.scales(); ++s) {
+    for (int p = 0; p < kNumHexPlanes; ++p) {
+      const int a = kHexPlaneAxes[p][0], b = kHexPlaneAxes[p][1];
+      const int old_a = old_grid.resolution(s, a), old_b = old_grid.resolution(s, b);
+      const int new_a = new_grid.resolution(s, a), new_b = new_grid.resolution(s, b);
+      const std::vector<float>& src = d.planes[s][p];
+      std::vector<float> dst(static_cast<size_t>(channels) * new_a * new_b);
+      for (int c = 0; c < channels; ++c) {
+        const float* plane = src.data() + static_cast<size_t>(c) * old_a * old_b;
+        for (int y = 0; y < new_b; ++y) {
+          const double sy = new_b > 1 ? static_cast<double>(y) * (old_b - 1) / (new_b - 1) : 0.0;
+          for (int x = 0; x < new_a; ++x) {
+            const double sx = new_a > 1 ? static_cast<double>(x) * (old_a - 1) / (new_a - 1) : 0.0;
+            dst[(static_cast<size_t>(c) * new_b + y) * new_a + x] = SamplePlane(plane, old_b, old_a, sy, sx);
+          }
+        }
+      }
+      d.planes[s][p] = std::move(dst);
+    }
+  }
+  d.config.grid = new_grid;
+  return CheckDeformationField(d);
+}
+
+}  // namespace atex::fit

@@ -1,0 +1,464 @@
+// The fitter's plan: greedy rate–distortion search over the levers (fit.h), and
+// applying a plan to a budget.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numeric>
+#include <tuple>
+
+#include "atex/fit.h"
+#include "levers.h"
+#include "texture_shrink.h"
+
+namespace atex::fit {
+
+const char* LeverName(Lever lever) {
+  switch (lever) {
+    case Lever::kPrune: return "prune";
+    case Lever::kTextures: return "textures";
+    case Lever::kShDegree: return "sh";
+    case Lever::kEncoding: return "encoding";
+    case Lever::kGrid: return "grid";
+  }
+  return "unknown";
+}
+
+const char* StreamName(Stream stream) {
+  switch (stream) {
+    case Stream::kPositions: return "positions";
+    case Stream::kRotations: return "rotations";
+    case Stream::kLogScales: return "log_scales";
+    case Stream::kOpacities: return "opacities";
+    case Stream::kShDc: return "sh_dc";
+    case Stream::kShRest: return "sh_rest";
+    case Stream::kTexels: return "texels";
+    case Stream::kDeformationGrids: return "deformation_grids";
+    case Stream::kCount: break;
+  }
+  return "unknown";
+}
+
+namespace {
+ScalarEncoding* EncodingField(WriteOptions* o, Stream stream) {
+  switch (stream) {
+    case Stream::kPositions: return &o->positions;
+    case Stream::kRotations: return &o->rotations;
+    case Stream::kLogScales: return &o->log_scales;
+    case Stream::kOpacities: return &o->opacities;
+    case Stream::kShDc: return &o->sh_dc;
+    case Stream::kShRest: return &o->sh_rest;
+    case Stream::kTexels: return &o->texels;
+    default: return &o->deformation_grids;
+  }
+}
+}  // namespace
+
+ScalarEncoding GetEncoding(const WriteOptions& options, Stream stream) {
+  WriteOptions copy = options;
+  return *EncodingField(&copy, stream);
+}
+void SetEncoding(WriteOptions* options, Stream stream, ScalarEncoding encoding) {
+  *EncodingField(options, stream) = encoding;
+}
+
+std::string DescribeMove(const Move& m) {
+  switch (m.lever) {
+    case Lever::kPrune: return StrCat("prune ", m.count, " Gaussians");
+    case Lever::kTextures: return StrCat("shrink ", m.count, " texture axes");
+    case Lever::kShDegree: return "lower the SH degree by one";
+    case Lever::kEncoding: return StrCat("store ", StreamName(m.stream), " as ", ScalarEncodingName(m.encoding));
+    case Lever::kGrid: return "halve the deformation grid resolution";
+  }
+  return "unknown move";
+}
+
+nlohmann::json MoveToJson(const Move& m) {
+  nlohmann::json j = {{"lever", LeverName(m.lever)},
+                      {"what", DescribeMove(m)},
+                      {"bytes_after", m.bytes_after},
+                      {"distortion_after", m.distortion_after},
+                      {"proxy_psnr_after", m.distortion_after > 0 ? -10.0 * std::log10(m.distortion_after) : 99.0}};
+  if (m.divisible()) j["count"] = m.count;
+  if (m.lever == Lever::kEncoding) {
+    j["stream"] = StreamName(m.stream);
+    j["encoding"] = ScalarEncodingName(m.encoding);
+  }
+  return j;
+}
+
+nlohmann::json ComponentsToJson(const std::vector<uint8_t>& encoded) {
+  nlohmann::json j = nlohmann::json::object();
+  auto info = InspectContainer(encoded.data(), encoded.size());
+  if (!info.ok()) return j;
+  for (const ComponentSize& c : ComponentBytes(*info)) j[c.component] = c.bytes;
+  return j;
+}
+
+StatusOr<WriteOptions> EncodingsOfFile(const uint8_t* data, size_t size, const WriteOptions& base) {
+  ATEX_ASSIGN_OR_RETURN(ContainerInfo info, InspectContainer(data, size));
+  WriteOptions out = base;
+  static const std::map<std::string, Stream> kStreams = {
+      {"GPOS", Stream::kPositions}, {"GROT", Stream::kRotations}, {"GSCL", Stream::kLogScales},
+      {"GOPA", Stream::kOpacities}, {"GSH0", Stream::kShDc},      {"GSHR", Stream::kShRest},
+      {"TEXL", Stream::kTexels},    {"DGRD", Stream::kDeformationGrids}};
+  for (const ChunkInfo& chunk : info.chunks) {
+    const auto it = kStreams.find(chunk.type);
+    if (it == kStreams.end()) continue;
+    if (chunk.codec == Codec::kDraco) continue;  // Draco positions: re-encoded with `base`'s settings
+    ATEX_ASSIGN_OR_RETURN(ScalarEncoding e, StreamEncodingOf(data, size, chunk));
+    SetEncoding(&out, it->second, e);
+  }
+  return out;
+}
+
+Status ApplyMove(const Move& move, const std::vector<uint32_t>& prune_order, Asset* asset, WriteOptions* write,
+                 std::vector<uint32_t>* kept, int min_grid_resolution) {
+  switch (move.lever) {
+    case Lever::kPrune: {
+      const size_t n = asset->gaussians.size();
+      if (kept->size() != n) return MakeError(StatusCode::kInternal, "fit: kept list out of step with the asset");
+      if (move.count >= n) {
+        return MakeError(StatusCode::kInvalidArgument, "fit: cannot prune ", move.count, " of ", n, " Gaussians");
+      }
+      std::vector<uint8_t> keep(n, 1);
+      uint64_t removed = 0;
+      for (uint32_t input_index : prune_order) {
+        if (removed == move.count) break;
+        const auto it = std::lower_bound(kept->begin(), kept->end(), input_index);
+        if (it == kept->end() || *it != input_index) continue;  // already gone
+        const size_t current = static_cast<size_t>(it - kept->begin());
+        if (keep[current]) {
+          keep[current] = 0;
+          ++removed;
+        }
+      }
+      *asset = SubsetGaussians(*asset, keep);
+      std::vector<uint32_t> still;
+      still.reserve(n - removed);
+      for (size_t i = 0; i < n; ++i)
+        if (keep[i]) still.push_back((*kept)[i]);
+      *kept = std::move(still);
+      return Status::Ok();
+    }
+    case Lever::kTextures: {
+      ATEX_ASSIGN_OR_RETURN(uint64_t done, ShrinkTextures(asset, move.count));
+      (void)done;
+      return Status::Ok();
+    }
+    case Lever::kShDegree: {
+      ATEX_RETURN_IF_ERROR(LowerShDegree(asset));
+      // A degree-0 asset has no SH-rest stream; keep its encoding field meaningful anyway.
+      return Status::Ok();
+    }
+    case Lever::kEncoding:
+      SetEncoding(write, move.stream, move.encoding);
+      return Status::Ok();
+    case Lever::kGrid:
+      return CoarsenGrid(asset, min_grid_resolution);
+  }
+  return MakeError(StatusCode::kInternal, "fit: unknown lever");
+}
+
+StatusOr<Asset> KeepMostImportant(const Asset& asset, const std::vector<uint32_t>& order, double fraction,
+                                  std::vector<uint32_t>* kept) {
+  const size_t n = asset.gaussians.size();
+  if (!(fraction > 0.0 && fraction <= 1.0)) {
+    return MakeError(StatusCode::kInvalidArgument, "keep-count fraction ", fraction, " is not in (0, 1]");
+  }
+  if (order.size() != n) {
+    return MakeError(StatusCode::kInvalidArgument, "importance order has ", order.size(), " entries for ", n,
+                     " Gaussians (the --order-from asset must have the same Gaussians)");
+  }
+  std::vector<uint8_t> seen(n, 0);
+  for (uint32_t i : order) {
+    if (i >= n || seen[i]) return MakeError(StatusCode::kInvalidArgument, "importance order is not a permutation");
+    seen[i] = 1;
+  }
+  const size_t keep_count = std::clamp<size_t>(static_cast<size_t>(std::ceil(fraction * n - 1e-9)), 1, n);
+  std::vector<uint8_t> keep(n, 0);
+  for (size_t k = n - keep_count; k < n; ++k) keep[order[k]] = 1;  // the most important are last
+  if (kept != nullptr) {
+    kept->clear();
+    for (size_t i = 0; i < n; ++i)
+      if (keep[i]) kept->push_back(static_cast<uint32_t>(i));
+  }
+  return SubsetGaussians(asset, keep);
+}
+
+StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, int min_grid_resolution) {
+  if (asset.gaussians.size() == 0) {
+    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(asset, write));
+    return static_cast<uint64_t>(bytes.size());
+  }
+  const std::vector<uint32_t> order = ImportanceOrder(asset, 0);
+  ATEX_ASSIGN_OR_RETURN(Asset smallest, KeepMostImportant(asset, order, 1.0 / static_cast<double>(asset.gaussians.size())));
+  while (smallest.gaussians.sh_degree > 0) ATEX_RETURN_IF_ERROR(LowerShDegree(&smallest));
+  ATEX_ASSIGN_OR_RETURN(uint64_t shrunk, ShrinkTextures(&smallest, std::numeric_limits<uint64_t>::max()));
+  (void)shrunk;
+  while (CanCoarsenGrid(smallest, min_grid_resolution)) ATEX_RETURN_IF_ERROR(CoarsenGrid(&smallest, min_grid_resolution));
+  WriteOptions w = write;
+  for (int s = 0; s < static_cast<int>(Stream::kCount); ++s) SetEncoding(&w, static_cast<Stream>(s), ScalarEncoding::kQuant8);
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(smallest, w));
+  return static_cast<uint64_t>(bytes.size());
+}
+
+namespace {
+
+struct State {
+  Asset asset;
+  WriteOptions write;
+  std::vector<uint32_t> kept;
+};
+
+struct Measured {
+  uint64_t bytes = 0;
+  double distortion = 0;
+};
+
+// Encodes (exact bytes), decodes (exact stored values) and renders the probes.
+StatusOr<Measured> Measure(const State& state, ProbeRenderer* renderer, const std::vector<Image>& reference,
+                           Asset* decoded_out = nullptr) {
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(state.asset, state.write));
+  ReadOptions read;
+  read.read_stats = false;
+  ATEX_ASSIGN_OR_RETURN(Asset decoded, DecodeAsset(bytes.data(), bytes.size(), read));
+  ATEX_ASSIGN_OR_RETURN(std::vector<Image> renders, renderer->Render(decoded));
+  ATEX_ASSIGN_OR_RETURN(double mse, MeanSquaredError(renders, reference));
+  if (decoded_out != nullptr) *decoded_out = std::move(decoded);
+  return Measured{bytes.size(), mse};
+}
+
+// The next move of every lever at `state` (prune and texture counts sized to the state).
+std::vector<Move> Proposals(const State& state, const PlanOptions& o) {
+  std::vector<Move> moves;
+  const Asset& a = state.asset;
+  const size_t n = a.gaussians.size();
+  if (n > 1) {
+    Move m;
+    m.lever = Lever::kPrune;
+    m.count = std::clamp<uint64_t>(static_cast<uint64_t>(o.prune_fraction * n), 1, n - 1);
+    moves.push_back(m);
+  }
+  if (a.textures && ShrinkableTexels(*a.textures) > 0) {
+    uint64_t growable = 0;
+    for (size_t i = 0; i < a.textures->size(); ++i) growable += a.textures->heights[i] * a.textures->widths[i] > 1;
+    Move m;
+    m.lever = Lever::kTextures;
+    m.count = std::max<uint64_t>(1, static_cast<uint64_t>(o.texture_fraction * static_cast<double>(growable)));
+    moves.push_back(m);
+  }
+  if (a.gaussians.sh_degree > 0) {
+    Move m;
+    m.lever = Lever::kShDegree;
+    moves.push_back(m);
+  }
+  for (int s = 0; s < static_cast<int>(Stream::kCount); ++s) {
+    const auto stream = static_cast<Stream>(s);
+    if (stream == Stream::kShRest && a.gaussians.sh_degree == 0) continue;
+    if (stream == Stream::kTexels && !a.textures) continue;
+    if (stream == Stream::kDeformationGrids && !a.deformation) continue;
+    const ScalarEncoding current = GetEncoding(state.write, stream);
+    std::vector<ScalarEncoding> next;
+    if (current == ScalarEncoding::kFloat32) next = {ScalarEncoding::kFloat16, ScalarEncoding::kQuant16};
+    if (current == ScalarEncoding::kFloat16 || current == ScalarEncoding::kQuant16) next = {ScalarEncoding::kQuant8};
+    for (ScalarEncoding e : next) {
+      Move m;
+      m.lever = Lever::kEncoding;
+      m.stream = stream;
+      m.encoding = e;
+      moves.push_back(m);
+    }
+  }
+  if (CanCoarsenGrid(a, o.min_grid_resolution)) {
+    Move m;
+    m.lever = Lever::kGrid;
+    moves.push_back(m);
+  }
+  return moves;
+}
+
+// Identity of a proposal across states (counts change with the state, the kind does not).
+using MoveKey = std::tuple<int, int, int>;
+MoveKey KeyOf(const Move& m) {
+  return {static_cast<int>(m.lever), m.lever == Lever::kEncoding ? static_cast<int>(m.stream) : -1,
+          m.lever == Lever::kEncoding ? static_cast<int>(m.encoding) : -1};
+}
+
+}  // namespace
+
+StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const PlanOptions& options) {
+  if (!(options.prune_fraction > 0 && options.prune_fraction < 1) ||
+      !(options.texture_fraction > 0 && options.texture_fraction <= 1)) {
+    return MakeError(StatusCode::kInvalidArgument, "fit: step fractions must be in (0, 1)");
+  }
+  ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
+  Plan plan;
+  plan.prune_order = ImportanceOrder(asset, options.seed);
+  // Reference: the untrimmed asset exactly as given (before any re-encoding).
+  ATEX_ASSIGN_OR_RETURN(std::vector<Image> reference, renderer->Render(asset));
+
+  State state{asset, options.write, {}};
+  state.kept.resize(asset.gaussians.size());
+  std::iota(state.kept.begin(), state.kept.end(), 0u);
+  ATEX_ASSIGN_OR_RETURN(Measured current, Measure(state, renderer, reference));
+  plan.initial_bytes = current.bytes;
+  plan.initial_distortion = current.distortion;
+
+  // Lazy greedy: each proposal keeps the cost per byte measured at an earlier state; only
+  // the best is re-measured before it is accepted (costs change slowly between moves).
+  struct Cached {
+    double ratio = 0;
+    uint64_t saving = 0;
+    bool fresh = false;
+  };
+  std::map<MoveKey, Cached> cache;
+  constexpr double kNoGain = std::numeric_limits<double>::infinity();
+  const auto evaluate = [&](const Move& proposal) -> StatusOr<std::pair<Cached, Measured>> {
+    State next = state;
+    Move m = proposal;
+    Status applied = ApplyMove(m, plan.prune_order, &next.asset, &next.write, &next.kept, options.min_grid_resolution);
+    if (!applied.ok()) return std::pair<Cached, Measured>{Cached{kNoGain, 0, true}, Measured{}};
+    auto measured = Measure(next, renderer, reference);
+    if (!measured.ok()) {
+      // A stream that an encoding cannot hold (f16 overflow) is simply not a move.
+      if (measured.status().code() == StatusCode::kOutOfRange) {
+        return std::pair<Cached, Measured>{Cached{kNoGain, 0, true}, Measured{}};
+      }
+      return measured.status();
+    }
+    if (measured->bytes >= current.bytes) return std::pair<Cached, Measured>{Cached{kNoGain, 0, true}, *measured};
+    const uint64_t saving = current.bytes - measured->bytes;
+    const double damage = std::max(0.0, measured->distortion - current.distortion);
+    return std::pair<Cached, Measured>{Cached{damage / static_cast<double>(saving), saving, true}, *measured};
+  };
+
+  while (current.bytes > options.floor_bytes) {
+    const std::vector<Move> proposals = Proposals(state, options);
+    if (proposals.empty()) break;
+    for (const Move& p : proposals) {
+      if (cache.count(KeyOf(p)) == 0) {
+        ATEX_ASSIGN_OR_RETURN(auto result, evaluate(p));
+        cache[KeyOf(p)] = result.first;
+      }
+    }
+    // Pick: best ratio; a stale best is re-measured first.
+    const auto better = [](const Cached& a, const Cached& b) {
+      return a.ratio < b.ratio || (a.ratio == b.ratio && a.saving > b.saving);
+    };
+    const Move* chosen = nullptr;
+    Measured chosen_measure;
+    for (int guard = 0; guard < 64 && chosen == nullptr; ++guard) {
+      const Move* best = nullptr;
+      const Move* second = nullptr;
+      for (const Move& p : proposals) {
+        const Cached& c = cache[KeyOf(p)];
+        if (best == nullptr || better(c, cache[KeyOf(*best)])) {
+          second = best;
+          best = &p;
+        } else if (second == nullptr || better(c, cache[KeyOf(*second)])) {
+          second = &p;
+        }
+      }
+      if (best == nullptr || cache[KeyOf(*best)].ratio == kNoGain) break;
+      ATEX_ASSIGN_OR_RETURN(auto result, evaluate(*best));
+      cache[KeyOf(*best)] = result.first;
+      if (result.first.ratio == kNoGain) continue;
+      if (second == nullptr || !better(cache[KeyOf(*second)], result.first) || guard == 63) {
+        chosen = best;
+        chosen_measure = result.second;
+      }
+    }
+    if (chosen == nullptr) break;  // no lever saves bytes any more
+    Move move = *chosen;
+    State next = state;
+    ATEX_RETURN_IF_ERROR(
+        ApplyMove(move, plan.prune_order, &next.asset, &next.write, &next.kept, options.min_grid_resolution));
+    move.bytes_after = chosen_measure.bytes;
+    move.distortion_after = chosen_measure.distortion;
+    if (options.accept_more) {
+      ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(next.asset, next.write));
+      ReadOptions read;
+      read.read_stats = false;
+      ATEX_ASSIGN_OR_RETURN(Asset decoded, DecodeAsset(bytes.data(), bytes.size(), read));
+      ATEX_ASSIGN_OR_RETURN(bool more, options.accept_more(decoded, move));
+      if (!more) break;
+    }
+    state = std::move(next);
+    current = chosen_measure;
+    plan.moves.push_back(move);
+    for (auto& entry : cache) entry.second.fresh = false;
+    cache.erase(KeyOf(move));  // its next step is a different move (new count, new encoding)
+    if (move.lever == Lever::kEncoding) {
+      // Both 16-bit options of a stream are decided once one is taken.
+      for (ScalarEncoding e : {ScalarEncoding::kFloat16, ScalarEncoding::kQuant16, ScalarEncoding::kQuant8}) {
+        cache.erase(MoveKey{static_cast<int>(Lever::kEncoding), static_cast<int>(move.stream), static_cast<int>(e)});
+      }
+    }
+    if (options.progress) {
+      options.progress(FitProgress{static_cast<int>(plan.moves.size()), current.bytes, options.floor_bytes,
+                                   StrCat(DescribeMove(move), ": ", current.bytes, " bytes, proxy PSNR ",
+                                          current.distortion > 0 ? -10.0 * std::log10(current.distortion) : 99.0)});
+    }
+  }
+  return plan;
+}
+
+StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes) {
+  State state{asset, write, {}};
+  state.kept.resize(asset.gaussians.size());
+  std::iota(state.kept.begin(), state.kept.end(), 0u);
+  Fitted out;
+  const auto encode = [](const State& s) { return EncodeAsset(s.asset, s.write); };
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, encode(state));
+  if (bytes.size() > budget_bytes) {
+    size_t j = 0;
+    while (j < plan.moves.size() && plan.moves[j].bytes_after > budget_bytes) ++j;
+    if (j == plan.moves.size()) {
+      const uint64_t reached = plan.moves.empty() ? bytes.size() : plan.moves.back().bytes_after;
+      return MakeError(StatusCode::kOutOfRange, "the fit plan reaches ", reached, " bytes at best, above the budget of ",
+                       budget_bytes, " bytes");
+    }
+    for (size_t k = 0; k < j; ++k) {
+      ATEX_RETURN_IF_ERROR(ApplyMove(plan.moves[k], plan.prune_order, &state.asset, &state.write, &state.kept));
+      out.moves.push_back(plan.moves[k]);
+    }
+    Move last = plan.moves[j];
+    if (last.divisible() && last.count > 1) {
+      // Smallest count that fits (the full count is known to fit).
+      uint64_t lo = 1, hi = last.count;
+      while (lo < hi) {
+        const uint64_t mid = lo + (hi - lo) / 2;
+        State trial = state;
+        Move m = last;
+        m.count = mid;
+        ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &trial.asset, &trial.write, &trial.kept));
+        ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, encode(trial));
+        if (trial_bytes.size() <= budget_bytes) {
+          hi = mid;
+        } else {
+          lo = mid + 1;
+        }
+      }
+      last.count = hi;
+    }
+    ATEX_RETURN_IF_ERROR(ApplyMove(last, plan.prune_order, &state.asset, &state.write, &state.kept));
+    ATEX_ASSIGN_OR_RETURN(bytes, encode(state));
+    last.bytes_after = bytes.size();
+    out.moves.push_back(last);
+  }
+  if (bytes.size() > budget_bytes) {
+    // Replaying the plan must reproduce its sizes exactly; anything else is a bug, not a fit.
+    return MakeError(StatusCode::kInternal, "fit: replaying the plan gave ", bytes.size(),
+                     " bytes, above the budget of ", budget_bytes);
+  }
+  ReadOptions read;
+  read.read_stats = false;
+  ATEX_ASSIGN_OR_RETURN(out.asset, DecodeAsset(bytes.data(), bytes.size(), read));
+  out.bytes = std::move(bytes);
+  out.write = state.write;
+  out.kept = std::move(state.kept);
+  return out;
+}
+
+}  // namespace atex::fit

@@ -1,0 +1,36 @@
+// The texture lever of the fitter: shrinking one texture axis at a time, least
+// damage per texel first.
+#pragma once
+
+#include <cstdint>
+
+#include "atex/model.h"
+#include "atex/status.h"
+
+namespace atex::fit {
+
+// Least-squares resampling of one corner-aligned bilinear texture to a smaller
+// size: the new h'×w' grid whose bilinear field is closest (L2 over the plane
+// [-1,1]², separably per axis) to the old field. The raw values are projected: the
+// renderer interpolates raw texels and activates the result. Sides must be in
+// {1, 2, 4} with new ≤ old.
+void ShrinkTexture(const float* src /* [h][w][4] */, int height, int width, float* dst /* [h'][w'][4] */,
+                   int new_height, int new_width);
+
+// Mean squared difference of the activated texels (0.1·tanh, what the renderer adds)
+// between a texture and the bilinear field of its shrunk version, at the old texel
+// positions (the damage per unit of coverage).
+double ShrinkResidual(const float* src /* [h][w][4] */, int height, int width, int new_height, int new_width);
+
+// Performs `count` shrink operations on `asset`'s texture pool, greedily: each
+// operation halves one axis of one texture (whichever axis does less damage; on a
+// tie the axis with the smaller peak scale), choosing the texture whose damage per
+// removed texel (importance × ShrinkResidual / texels removed) is smallest; ties go
+// to the lower training demand, then the lower index. Stops early when every
+// texture is 1×1. Returns the number of operations done.
+StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count);
+
+// Texels that ShrinkTextures could still remove (all textures down to 1×1).
+uint64_t ShrinkableTexels(const TexturePool& pool);
+
+}  // namespace atex::fit
