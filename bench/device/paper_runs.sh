@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# The GPU experiments of BENCHMARKS.md, one phase per call (a lent GPU machine allows
+# 10 minutes per command; the build folder and out/ persist between phases).
+#   bench/device/paper_runs.sh build|lego|stage1|stage2|fit  OUT_DIR
+# Data: .devdata/panoptic_basketball (CMU Panoptic, 30 timesteps) and
+# .devdata/dnerf_lego_tiny/tiny_dnerf_data.npz (copies of ../shared/data).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+phase=$1 out=$2
+mkdir -p "$out" out
+BUILD=${ATEX_GPU_BUILD:-bg}
+atex=$BUILD/bin/atex
+bb=.devdata/panoptic_basketball
+lego=.devdata/dnerf_lego_tiny/tiny_dnerf_data.npz
+log() { echo "== $(date +%T) $*" >&2; }
+
+case $phase in
+  build)
+    cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES=90 >/dev/null
+    cmake --build "$BUILD" -j "$(nproc)" --target atex_cli 2>&1 | tail -3
+    nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader | tee "$out/gpu.txt"
+    ;;
+  lego)
+    # The embedded sample: a small deformation field (C 16, 32^3 x 13) so the asset is a few MB.
+    log "lego: both stages"
+    "$atex" train --data "$lego" --out out/lego.atex --json --time-limit "${LEGO_TIME:-240}" \
+      --set stage1.init_points=20000 --set stage1.fine_iterations=8000 \
+      --set stage1.deformation.grid.channels=16 --set 'stage1.deformation.grid.base_resolution=[32,32,32,13]' \
+      --set stage2.iterations=2000 > "$out/lego.train.json" 2> "$out/lego.train.log"
+    "$atex" info out/lego.atex > "$out/lego.info.txt"
+    "$atex" fit out/lego.atex out/lego_2MiB.atex --budget 2MiB --data "$lego" --json \
+      > "$out/lego.fit.json" 2> "$out/lego.fit.log"
+    "$atex" eval out/lego_2MiB.atex --data "$lego" --json > "$out/lego_2MiB.eval.json"
+    cp out/lego.atex out/lego_2MiB.atex "$out/"
+    for f in out/lego.atex out/lego_2MiB.atex; do
+      "$atex" render "$f" --data "$lego" --view test:0 --out "$out/$(basename "$f" .atex)_test0.png" \
+        --ground-truth "$out/lego_gt_test0.png" >/dev/null 2>&1 || true
+    done
+    ;;
+  stage1)
+    log "basketball stage 1"
+    "$atex" train --data "$bb" --out out/bb_s1.atex --stage 1 --json --profile \
+      --time-limit "${STAGE1_TIME:-300}" --metrics "$out/bb_s1.metrics.csv" > "$out/bb_s1.train.json" 2> "$out/bb_s1.train.log"
+    "$atex" info out/bb_s1.atex --json > "$out/bb_s1.info.json"
+    for size in 640x360 1352x1014; do
+      "$atex" fps out/bb_s1.atex --data "$bb" --size "$size" --json > "$out/none.fps.$size.json"
+    done
+    ;;
+  stage2)
+    log "basketball stage 2 matrix"
+    bench/stage2_matrix.sh "$atex" "$bb" out/bb_s1.atex out/s2 --set "stage2.iterations=${STAGE2_ITERS:-1500}"
+    cp out/s2/*.json "$out/" 2>/dev/null || true
+    tail -n 5 out/s2/*.log > "$out/stage2_logs.txt" || true
+    ;;
+  fit)
+    # Budgets at 25/50/100% of the uniform model's size, and 25/50% counts with the stage-1 order.
+    uniform=$(stat -c %s out/s2/uniform.atex)
+    for m in none uniform adaptive; do
+      src=out/s2/$m.atex; [ $m = none ] && src=out/bb_s1.atex
+      log "fit $m"
+      timeout 200 "$atex" fit "$src" "out/fit_${m}_{}.atex" --budget "$((uniform / 4)),$((uniform / 2)),$uniform" \
+        --data "$bb" --eval-views 0 --json > "$out/fit_$m.budget.json" 2> "$out/fit_$m.budget.log" || echo "fit $m failed" >&2
+      for f in 0.25 0.5; do
+        timeout 60 "$atex" fit "$src" "out/fit_${m}_count$f.atex" --keep-count $f --order-from out/bb_s1.atex \
+          --data "$bb" --eval-views 0 --json > "$out/fit_$m.count$f.json" 2>> "$out/fit_$m.count.log" || echo "count $m $f failed" >&2
+      done
+    done
+    ;;
+  *) echo "unknown phase $phase" >&2; exit 2 ;;
+esac
+log "done $phase"
