@@ -551,8 +551,8 @@ TEST(Panoptic, TimestepStrideAndSparseTrainCameras) {
   EXPECT_EQ(d.test_views().size(), 4u * 3);
   std::set<int> cams;
   for (const View& v : d.train_views()) cams.insert(v.camera_id);
-  // The 27 training cameras 1-9, 11-14, 16-29: ids[0], ids[4], ... ids[22].
-  EXPECT_EQ(cams, (std::set<int>{1, 5, 9, 14, 19, 24}));
+  // The 27 training cameras 1-9, 11-14, 16-29: ids[floor(i * 27 / 6)] = ids[0, 4, 9, 13, 18, 22].
+  EXPECT_EQ(cams, (std::set<int>{1, 5, 11, 16, 21, 25}));
   EXPECT_DOUBLE_EQ(d.test_views().back().camera.time, 1.0);  // t = 8 of 0..8
   EXPECT_EQ(d.test_views().back().timestep, 2);
 }

@@ -74,6 +74,15 @@ TEST(TextureShrink, GreedyOrderAndLimits) {
   EXPECT_TRUE(ValidateAsset(a).ok());
 }
 
+TEST(TextureShrink, UniformAssetsBecomeAdaptive) {
+  Asset a = SmallAsset(container::SyntheticTextures::kUniform);
+  a.metadata.texture_mode = "uniform";
+  ASSERT_TRUE(ValidateAsset(a).ok());
+  ASSERT_TRUE(ShrinkTextures(&a, 5).ok());
+  EXPECT_EQ(a.metadata.texture_mode, "adaptive");
+  EXPECT_TRUE(ValidateAsset(a).ok()) << ValidateAsset(a).ToString();
+}
+
 TEST(Levers, ShDegreeAndGridKeepAssetsValid) {
   Asset a = SmallAsset(container::SyntheticTextures::kMixed);
   ASSERT_TRUE(a.deformation->config.heads[kHeadSH]);

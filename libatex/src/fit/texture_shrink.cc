@@ -205,6 +205,8 @@ StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count) {
               out.texels.begin() + static_cast<std::ptrdiff_t>(out.offsets[i] * kTexelChannels));
   }
   pool = std::move(out);
+  // Textures of different sizes are an adaptive pool, whatever mode trained them.
+  if (done > 0 && asset->metadata.texture_mode == "uniform") asset->metadata.texture_mode = "adaptive";
   return done;
 }
 

@@ -443,7 +443,11 @@ class Loop {
     ATEX_RETURN_IF_ERROR(backend_.Save(&state));
     nlohmann::json trainer = {{"phase", PhaseName(phase)}, {"step", step},          {"lr_scale", lr_scale_},
                               {"total_steps", total_steps_}, {"config", ConfigToJson(config_)}};
-    return WriteCheckpoint(options_.checkpoint_dir, state, metadata_, trainer);
+    // The writer checks that the metadata's texture mode matches the textures (stage 2
+    // starts from a stage-1 asset whose metadata says "none").
+    Metadata metadata = metadata_;
+    metadata.texture_mode = state.textures ? std::string(TextureModeName(config_.stage2.textures)) : "none";
+    return WriteCheckpoint(options_.checkpoint_dir, state, metadata, trainer);
   }
 
   Status Cancelled(Phase phase, int step) {

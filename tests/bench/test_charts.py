@@ -1,0 +1,87 @@
+#!/usr/bin/env python3
+"""Runs bench/charts.py on a committed example CSV and checks that every chart is a complete,
+valid PNG (signature, IHDR, CRC of every chunk, IEND) of a plausible size.
+
+    python3 tests/bench/test_charts.py --csv bench/testdata/example_results.csv --out DIR
+Exit status 77 (CTest SKIP_RETURN_CODE) when this interpreter has no matplotlib.
+"""
+import argparse
+import os
+import struct
+import subprocess
+import sys
+import zlib
+
+SOURCE = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+EXPECTED = ["psnr_vs_model_mib.png", "psnr_vs_fps.png", "psnr_vs_train_time.png", "texel_histogram.png"]
+
+
+def check_png(path):
+    """(width, height) of a PNG whose every chunk CRC is right and that ends with IEND."""
+    with open(path, "rb") as f:
+        data = f.read()
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError("%s: no PNG signature" % path)
+    at, chunks, size = 8, [], None
+    while at < len(data):
+        if at + 8 > len(data):
+            raise ValueError("%s: truncated chunk header at byte %d" % (path, at))
+        length, kind = struct.unpack(">I4s", data[at:at + 8])
+        body = data[at + 8:at + 8 + length]
+        if len(body) != length or at + 12 + length > len(data):
+            raise ValueError("%s: truncated %s chunk" % (path, kind))
+        crc, = struct.unpack(">I", data[at + 8 + length:at + 12 + length])
+        if zlib.crc32(kind + body) & 0xFFFFFFFF != crc:
+            raise ValueError("%s: bad CRC in %s chunk" % (path, kind))
+        if kind == b"IHDR":
+            size = struct.unpack(">II", body[:8])
+        chunks.append(kind)
+        at += 12 + length
+        if kind == b"IEND":
+            break
+    if not chunks or chunks[0] != b"IHDR" or chunks[-1] != b"IEND" or b"IDAT" not in chunks:
+        raise ValueError("%s: chunk order %s" % (path, chunks))
+    if at != len(data):
+        raise ValueError("%s: %d bytes after IEND" % (path, len(data) - at))
+    return size
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--csv", default=os.path.join(SOURCE, "bench", "testdata", "example_results.csv"))
+    p.add_argument("--charts", default=os.path.join(SOURCE, "bench", "charts.py"))
+    p.add_argument("--out", required=True)
+    args = p.parse_args()
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        print("SKIP: matplotlib is not installed for %s (Debian: python3-matplotlib, /usr/bin/python3)" % sys.executable)
+        return 77
+    for name in EXPECTED:
+        try:
+            os.remove(os.path.join(args.out, name))
+        except OSError:
+            pass
+    proc = subprocess.run([sys.executable, args.charts, args.csv, "--out", args.out, "--title", "test"],
+                          capture_output=True, text=True)
+    print(proc.stdout + proc.stderr)
+    if proc.returncode != 0:
+        print("FAIL: charts.py exited with %d" % proc.returncode)
+        return 1
+    failures = 0
+    for name in EXPECTED:
+        path = os.path.join(args.out, name)
+        try:
+            w, h = check_png(path)
+            size = os.path.getsize(path)
+            if w < 300 or h < 200 or size < 10000:
+                raise ValueError("%s: %dx%d, %d bytes: too small to hold a chart" % (path, w, h, size))
+            print("ok   %s: %dx%d, %d bytes" % (path, w, h, size))
+        except (OSError, ValueError) as e:
+            print("FAIL %s" % e)
+            failures += 1
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
