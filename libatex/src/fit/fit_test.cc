@@ -261,6 +261,7 @@ TEST(Importance, MeasuredWhenMissing) {
   a.stats.reset();
   ASSERT_TRUE(EnsureImportance(&a, OrbitProbes(a, 3, 24, 18)).ok());
   ASSERT_TRUE(a.stats);
+  EXPECT_TRUE(ValidateAsset(a).ok()) << ValidateAsset(a).ToString();
   double total = 0;
   for (float v : a.stats->importance) total += v;
   EXPECT_GT(total, 0.0);

@@ -167,7 +167,12 @@ Status EnsureImportance(Asset* asset, const std::vector<Probe>& probes) {
     for (size_t i = 0; i < n; ++i) importance[i] += out.importance[i];
   }
   if (!asset->stats) asset->stats = GaussianStats{};
-  asset->stats->importance = std::move(importance);
+  GaussianStats& stats = *asset->stats;
+  stats.importance = std::move(importance);
+  // The other statistics are unknown: zero, as training writes them for never-visible Gaussians.
+  for (std::vector<float>* v : {&stats.texture_demand, &stats.peak_scale_u, &stats.peak_scale_v}) {
+    if (v->size() != n) v->assign(n, 0.0f);
+  }
   return Status::Ok();
 }
 
