@@ -9,11 +9,19 @@ Status LoadAssetIntoBackend(const std::string& path, train::Backend* backend, As
                             train::RenderRequest* request) {
   ATEX_ASSIGN_OR_RETURN(*asset, ReadAssetFile(path));
   ATEX_RETURN_IF_ERROR(backend->Load(train::StateFromAsset(*asset)).WithContext(path));
-  request->active_sh_degree = asset->gaussians.sh_degree;
-  request->apply_deformation = asset->deformation.has_value();
-  request->use_textures = asset->textures.has_value();
-  request->background = asset->metadata.background;
+  *request = train::RenderRequestFor(*asset);
   return Status::Ok();
+}
+
+StatusOr<std::unique_ptr<Dataset>> OpenDatasetArgs(const std::string& path, const std::string& kind, int timesteps,
+                                                   int downscale, int timestep_stride, int train_cameras) {
+  DatasetOptions options;
+  ATEX_ASSIGN_OR_RETURN(options.kind, ParseDatasetKind(kind));
+  options.max_timesteps = timesteps;
+  options.downscale = downscale;
+  options.timestep_stride = timestep_stride;
+  options.train_cameras = train_cameras;
+  return OpenDataset(path, options);
 }
 
 }  // namespace atex::cli

@@ -2,8 +2,10 @@
 // cameras from a dataset.
 #pragma once
 
+#include <memory>
 #include <string>
 
+#include "atex/dataset.h"
 #include "atex/model.h"
 #include "atex/status.h"
 #include "atex/train/backend.h"
@@ -14,5 +16,10 @@ namespace atex::cli {
 // everything the asset has (deformation, textures, full SH, its background).
 Status LoadAssetIntoBackend(const std::string& path, train::Backend* backend, Asset* asset,
                             train::RenderRequest* request);
+
+// Opens --data with the common dataset options of the commands (--dataset-kind,
+// --timesteps, --downscale, --timestep-stride, --train-cameras).
+StatusOr<std::unique_ptr<Dataset>> OpenDatasetArgs(const std::string& path, const std::string& kind, int timesteps,
+                                                   int downscale, int timestep_stride = 1, int train_cameras = 0);
 
 }  // namespace atex::cli

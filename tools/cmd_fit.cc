@@ -12,6 +12,7 @@
 #include "atex/fit.h"
 #include "atex/render.h"
 #include "atex/train/trainer.h"
+#include "asset_view.h"
 #include "backend_select.h"
 #include "cli.h"
 
@@ -43,19 +44,10 @@ std::vector<View> Spread(const std::vector<View>& views, int count) {
   return out;
 }
 
-train::RenderRequest RequestFor(const Asset& asset) {
-  train::RenderRequest r;
-  r.active_sh_degree = asset.gaussians.sh_degree;
-  r.apply_deformation = asset.deformation.has_value();
-  r.use_textures = asset.textures.has_value();
-  r.background = asset.metadata.background;
-  return r;
-}
-
 StatusOr<train::EvalResult> EvaluateAsset(const Dataset& dataset, train::Backend& backend, const Asset& asset,
                                           const std::vector<View>& views) {
   ATEX_RETURN_IF_ERROR(backend.Load(train::StateFromAsset(asset)));
-  return train::Evaluate(dataset, backend, views, RequestFor(asset));
+  return train::Evaluate(dataset, backend, views, train::RenderRequestFor(asset));
 }
 
 nlohmann::json MetricsJson(const train::EvalResult& e) {
@@ -139,13 +131,7 @@ int RunFit(const FitArgs& a) {
 
   std::unique_ptr<Dataset> dataset;
   if (!a.data.empty()) {
-    DatasetOptions dopts;
-    auto kind = ParseDatasetKind(a.kind);
-    if (!kind.ok()) return cli::Fail(cmd, kind.status());
-    dopts.kind = *kind;
-    dopts.max_timesteps = a.timesteps;
-    dopts.downscale = a.downscale;
-    auto opened = OpenDataset(a.data, dopts);
+    auto opened = cli::OpenDatasetArgs(a.data, a.kind, a.timesteps, a.downscale);
     if (!opened.ok()) return cli::Fail(cmd, opened.status());
     dataset = std::move(*opened);
   }

@@ -45,13 +45,7 @@ int RunRender(const RenderArgs& a) {
   View view;
   std::unique_ptr<Dataset> dataset;
   if (!a.data.empty()) {
-    DatasetOptions dopts;
-    auto kind = ParseDatasetKind(a.kind);
-    if (!kind.ok()) return cli::Fail(cmd, kind.status());
-    dopts.kind = *kind;
-    dopts.max_timesteps = a.timesteps;
-    dopts.downscale = a.downscale;
-    auto opened = OpenDataset(a.data, dopts);
+    auto opened = cli::OpenDatasetArgs(a.data, a.kind, a.timesteps, a.downscale);
     if (!opened.ok()) return cli::Fail(cmd, opened.status());
     dataset = std::move(*opened);
     auto picked = PickView(*dataset, a.view);

@@ -55,11 +55,7 @@ TEST(FitLego, TestPsnrNeverRisesAsTheBudgetShrinks) {
     ASSERT_TRUE(fitted.ok()) << fitted.status().ToString();
     ASSERT_LE(fitted->bytes.size(), budget);
     ASSERT_TRUE(backend->Load(train::StateFromAsset(fitted->asset)).ok());
-    train::RenderRequest request;
-    request.active_sh_degree = fitted->asset.gaussians.sh_degree;
-    request.use_textures = fitted->asset.textures.has_value();
-    request.background = fitted->asset.metadata.background;
-    auto eval = train::Evaluate(**dataset, *backend, test_views, request);
+    auto eval = train::Evaluate(**dataset, *backend, test_views, train::RenderRequestFor(fitted->asset));
     ASSERT_TRUE(eval.ok()) << eval.status().ToString();
     std::printf("[fit lego] budget %3d%% = %8llu bytes: file %8zu bytes, %zu Gaussians, test PSNR %.3f dB\n", percent,
                 static_cast<unsigned long long>(budget), fitted->bytes.size(), fitted->asset.gaussians.size(),

@@ -45,15 +45,6 @@ std::array<double, 16> LookAt(const std::array<double, 3>& eye, const std::array
   return m;
 }
 
-train::RenderRequest RequestFor(const Asset& asset) {
-  train::RenderRequest r;
-  r.active_sh_degree = asset.gaussians.sh_degree;
-  r.apply_deformation = asset.deformation.has_value();
-  r.use_textures = asset.textures.has_value();
-  r.background = asset.metadata.background;
-  return r;
-}
-
 }  // namespace
 
 std::vector<Probe> OrbitProbes(const Asset& asset, int count, int width, int height) {
@@ -112,7 +103,7 @@ Camera ScaleCamera(const Camera& camera, int max_side) {
 
 StatusOr<std::vector<Image>> ProbeRenderer::RenderCameras(const Asset& asset, const std::vector<Camera>& cameras) {
   ATEX_RETURN_IF_ERROR(backend_->Load(train::StateFromAsset(asset)));
-  const train::RenderRequest request = RequestFor(asset);
+  const train::RenderRequest request = train::RenderRequestFor(asset);
   std::vector<Image> images;
   images.reserve(cameras.size());
   for (const Camera& camera : cameras) {

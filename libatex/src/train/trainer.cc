@@ -534,6 +534,15 @@ class Loop {
 
 }  // namespace
 
+RenderRequest RenderRequestFor(const Asset& asset) {
+  RenderRequest r;
+  r.active_sh_degree = asset.gaussians.sh_degree;
+  r.apply_deformation = asset.deformation.has_value();
+  r.use_textures = asset.textures.has_value();
+  r.background = asset.metadata.background;
+  return r;
+}
+
 StatusOr<TrainSummary> Train(const Dataset& dataset, Backend& backend, const TrainerOptions& options,
                              const Asset* initial) {
   Loop loop(dataset, backend, options);

@@ -91,6 +91,9 @@ double CameraExtent(const std::vector<View>& views);
 // Model state <-> asset (canonical parameters only; moments reset).
 ModelState StateFromAsset(const Asset& asset);
 Asset AssetFromState(const ModelState& state, const Metadata& metadata);
+// A request that renders everything `asset` has: its deformation, textures, full SH
+// degree and background.
+RenderRequest RenderRequestFor(const Asset& asset);
 
 }  // namespace atex::train
 
