@@ -48,6 +48,8 @@ fi
 step "atex export: glTF 2.0 with KHR_gaussian_splatting + ATEX extensions, and splaTV"
 "$ATEX" export "$SAMPLE" "$OUT/lego.glb"
 "$ATEX" export "$SAMPLE" "$OUT/lego.splatv"
+echo "open them in a browser: tests/web/install.sh; node tests/web/serve.mjs --data $OUT; then"
+echo "  http://127.0.0.1:8080/?src=/data/lego.glb (Babylon.js) and http://127.0.0.1:8080/splatv.html?src=/data/lego.splatv"
 step "atex convert: 3DGS PLY at t=0.5, per-frame SPZ, and the OpenEXR texel atlas"
 "$ATEX" convert "$SAMPLE" "$OUT/lego_t0.5.ply" --time 0.5
 "$ATEX" convert "$SAMPLE" "$OUT/frames" --frames 0:1:0.25 --to spz
