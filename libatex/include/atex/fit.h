@@ -15,7 +15,7 @@
 // dataset's training views when one is given, else orbit views around the scene
 // (the documented proxy). The plan is deterministic (the same input, options and
 // backend results give the same plan), so one plan serves every budget above its
-// floor, and smaller budgets give subsets of the moves of larger ones.
+// floor.
 //
 // Guarantees: a fitted asset's encoded size is at most the budget (checked on the
 // exact bytes, not estimated) and the asset passes ValidateAsset; a budget below
@@ -151,7 +151,8 @@ struct Fitted {
 };
 
 // Applies moves of `plan` in order until the encoded asset fits `budget_bytes`; the
-// last divisible move is bisected so that as little as needed is removed. Fails with
+// last move, if divisible, is bisected so that as little as needed is removed; if it is
+// indivisible, the latest divisible move before it is partly undone to use the slack. Fails with
 // kOutOfRange when even the whole plan does not fit (the message names the smallest
 // size reached).
 StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes);

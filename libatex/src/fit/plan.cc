@@ -5,6 +5,7 @@
 #include <limits>
 #include <map>
 #include <numeric>
+#include <optional>
 #include <tuple>
 
 #include "atex/fit.h"
@@ -404,6 +405,61 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   return plan;
 }
 
+namespace {
+
+// Replays `moves` on `asset` with the count of moves[k] replaced by `count_k` (0: skipped).
+StatusOr<State> Replay(const Asset& asset, const Plan& plan, const WriteOptions& write, const std::vector<Move>& moves,
+                       size_t k, uint64_t count_k) {
+  State s{asset, write, {}};
+  s.kept.resize(asset.gaussians.size());
+  std::iota(s.kept.begin(), s.kept.end(), 0u);
+  for (size_t i = 0; i < moves.size(); ++i) {
+    Move m = moves[i];
+    if (i == k) {
+      if (count_k == 0) continue;
+      m.count = count_k;
+    }
+    ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &s.asset, &s.write, &s.kept));
+  }
+  return s;
+}
+
+// After an indivisible last move: the smallest count of the latest divisible move that still
+// fits (its recorded count does), so that the slack below the budget is spent again.
+Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
+                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes) {
+  size_t k = moves->size();
+  for (size_t i = moves->size(); i-- > 0;) {
+    if ((*moves)[i].divisible()) {
+      k = i;
+      break;
+    }
+  }
+  if (k == moves->size()) return Status::Ok();
+  uint64_t lo = 0, hi = (*moves)[k].count;
+  std::optional<std::pair<State, std::vector<uint8_t>>> best;
+  while (lo < hi) {
+    const uint64_t mid = lo + (hi - lo) / 2;
+    ATEX_ASSIGN_OR_RETURN(State trial, Replay(asset, plan, write, *moves, k, mid));
+    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, EncodeAsset(trial.asset, trial.write));
+    if (trial_bytes.size() <= budget) {
+      hi = mid;
+      best.emplace(std::move(trial), std::move(trial_bytes));
+    } else {
+      lo = mid + 1;
+    }
+  }
+  if (!best || hi == (*moves)[k].count) return Status::Ok();
+  (*moves)[k].count = hi;
+  if (hi == 0) moves->erase(moves->begin() + static_cast<std::ptrdiff_t>(k));
+  moves->back().bytes_after = best->second.size();
+  *state = std::move(best->first);
+  *bytes = std::move(best->second);
+  return Status::Ok();
+}
+
+}  // namespace
+
 StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes) {
   State state{asset, write, {}};
   state.kept.resize(asset.gaussians.size());
@@ -446,6 +502,11 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
     ATEX_ASSIGN_OR_RETURN(bytes, encode(state));
     last.bytes_after = bytes.size();
     out.moves.push_back(last);
+    if (!last.divisible()) {
+      // An indivisible last move (an encoding, the SH degree, the grid) can land far below the
+      // budget; give the slack back by undoing part of the latest divisible move before it.
+      ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes));
+    }
   }
   if (bytes.size() > budget_bytes) {
     // Replaying the plan must reproduce its sizes exactly; anything else is a bug, not a fit.
