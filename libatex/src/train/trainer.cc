@@ -315,14 +315,18 @@ class Loop {
       }
       ATEX_ASSIGN_OR_RETURN(StepResult result, backend_.Step(request, views));
       if (!result.finite) {
+        // Name the batch: a corrupt frame shows up as the view that every failing batch shares.
+        std::string batch_views;
+        for (const TrainView& v : views) batch_views += (batch_views.empty() ? "" : ", ") + v.camera->name;
         if (!have_snapshot || ++rollbacks > kMaxRollbacks) {
           return MakeError(StatusCode::kNumericalError, PhaseName(phase), " step ", step,
-                           ": non-finite loss or gradients and no recovery left (", rollbacks - 1, " rollbacks)");
+                           ": non-finite loss or gradients and no recovery left (", rollbacks - 1,
+                           " rollbacks); views of the batch: ", batch_views);
         }
         lr_scale_ *= 0.5;
         ATEX_RETURN_IF_ERROR(backend_.Load(snapshot));
-        Event(StrCat(PhaseName(phase), " step ", step, ": NaN/Inf detected; rolled back to the last snapshot and "
-                     "halved the learning rates (scale ", lr_scale_, ")"));
+        Event(StrCat(PhaseName(phase), " step ", step, ": NaN/Inf detected (views ", batch_views,
+                     "); rolled back to the last snapshot and halved the learning rates (scale ", lr_scale_, ")"));
         step = (step / kSnapshotInterval) * kSnapshotInterval - 1;  // redo from the snapshot
         continue;
       }
