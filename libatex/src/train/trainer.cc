@@ -426,6 +426,12 @@ class Loop {
       edit.cap_opacity_logit = std::log(0.01f / 0.99f);  // 3DGS/4DGaussians: opacity capped at 0.01
       Event(StrCat(PhaseName(phase), " step ", done, ": opacity reset"));
     }
+    if (edit.source.empty() && report.before > 0) {
+      // Nothing left to train or render: stop with the cause instead of carrying on empty.
+      return MakeError(StatusCode::kNumericalError, PhaseName(phase), " step ", done, ": pruning would remove all ",
+                       report.before, " Gaussians (min_opacity ", d.min_opacity, ", world-size limit ",
+                       d.max_world_scale_fraction, " x extent); lower stage1.densify.min_opacity or check the data");
+    }
     ATEX_RETURN_IF_ERROR(backend_.ApplyEdit(edit));
     summary_.densifications.push_back(report);
     *gaussians = report.after;
