@@ -452,7 +452,18 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
   if (!best || hi == (*moves)[k].count) return Status::Ok();
   (*moves)[k].count = hi;
   if (hi == 0) moves->erase(moves->begin() + static_cast<std::ptrdiff_t>(k));
-  moves->back().bytes_after = best->second.size();
+  // The sizes recorded for move k and later ones belong to the plan; measure the real ones.
+  // (Their distortion stays the plan's estimate: ApplyPlan does not render.)
+  State replay{asset, write, {}};
+  replay.kept.resize(asset.gaussians.size());
+  std::iota(replay.kept.begin(), replay.kept.end(), 0u);
+  for (size_t i = 0; i < moves->size(); ++i) {
+    ATEX_RETURN_IF_ERROR(ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept));
+    if (i >= k) {
+      ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> step_bytes, EncodeAsset(replay.asset, replay.write));
+      (*moves)[i].bytes_after = step_bytes.size();
+    }
+  }
   *state = std::move(best->first);
   *bytes = std::move(best->second);
   return Status::Ok();
