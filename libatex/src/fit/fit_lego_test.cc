@@ -68,3 +68,51 @@ TEST(FitLego, TestPsnrNeverRisesAsTheBudgetShrinks) {
 
 }  // namespace
 }  // namespace atex::fit
+
+namespace atex::fit {
+namespace {
+
+// `atex fit --finetune` retrains a fitted asset with stage 2 alone: the trainer must keep the
+// asset's own texture pool (sizes and texels as fitted), its Gaussians and its SH degree.
+TEST(FitLego, FinetuneKeepsTheFittedTexturePool) {
+  ATEX_REQUIRE_DATA_FILE(data, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  const std::filesystem::path sample =
+      std::filesystem::path(std::getenv("ATEX_SOURCE_DIR") ? std::getenv("ATEX_SOURCE_DIR") : ".") / "samples" /
+      "lego_adaptive_2MiB.atex";
+  auto asset = ReadAssetFile(sample.string());
+  ASSERT_TRUE(asset.ok()) << asset.status().ToString();
+  // Give the pool different sizes, as a fit of a grown asset would have.
+  for (size_t i = 0; i < asset->textures->size(); i += 3) asset->textures->widths[i] = 2;
+  asset->textures->RebuildOffsets();
+  asset->textures->texels.assign(asset->textures->texel_count() * kTexelChannels, 0.01f);
+  ASSERT_TRUE(ValidateAsset(*asset).ok());
+  auto dataset = OpenDataset(data.string());
+  ASSERT_TRUE(dataset.ok());
+
+  train::TrainerOptions options;
+  options.config = train::DefaultConfig("dnerf");
+  options.config.stage1.sh_degree = asset->gaussians.sh_degree;
+  options.config.stage2.iterations = 2;
+  options.config.stage2.batch_size = 1;
+  options.config.stage2.growth_steps.clear();
+  options.config.eval_every = 0;
+  options.config.checkpoint_every = 0;
+  options.stages = train::kStage2;
+  auto backend = train::MakeCpuBackend();
+  auto tuned = train::Train(**dataset, *backend, options, &*asset);
+  ASSERT_TRUE(tuned.ok()) << tuned.status().ToString();
+  const Asset& out = tuned->asset;
+  ASSERT_TRUE(out.textures);
+  EXPECT_EQ(out.gaussians.size(), asset->gaussians.size());
+  EXPECT_EQ(out.gaussians.sh_degree, asset->gaussians.sh_degree);
+  EXPECT_EQ(out.textures->widths, asset->textures->widths);
+  EXPECT_EQ(out.textures->heights, asset->textures->heights);
+  EXPECT_NE(out.textures->texels, asset->textures->texels) << "the texels were trained";
+  bool kept_event = false;
+  for (const std::string& e : tuned->events) kept_event |= e.find("kept the initial asset") != std::string::npos;
+  EXPECT_TRUE(kept_event);
+  EXPECT_TRUE(ValidateAsset(out).ok()) << ValidateAsset(out).ToString();
+}
+
+}  // namespace
+}  // namespace atex::fit
