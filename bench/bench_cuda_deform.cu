@@ -18,6 +18,7 @@
 #include <cublas_v2.h>
 #include <cuda_runtime.h>
 
+#include "bench_configs.h"
 #include "atex/deform.h"
 #include "atex/model.h"
 #include "deform/deform_cuda.h"
@@ -31,30 +32,6 @@ using atex::cuda::DeviceBuffer;
 bool HaveDevice() {
   int count = 0;
   return cudaGetDeviceCount(&count) == cudaSuccess && count > 0;
-}
-
-atex::DeformationConfig N3dvConfig() {
-  atex::DeformationConfig c;
-  c.grid.channels = 16;
-  c.grid.base_resolution = {64, 64, 64, 150};
-  c.grid.multires = {1, 2};
-  c.mlp_width = 128;
-  c.trunk_layers = 1;
-  c.heads = {true, true, true, true, true};
-  c.sh_coeffs = 16;
-  return c;
-}
-
-atex::DeformationConfig DnerfConfig() {
-  atex::DeformationConfig c;
-  c.grid.channels = 32;
-  c.grid.base_resolution = {64, 64, 64, 25};
-  c.grid.multires = {1, 2};
-  c.mlp_width = 64;
-  c.trunk_layers = 1;
-  c.heads = {true, true, true, false, false};
-  c.sh_coeffs = 1;
-  return c;
 }
 
 std::vector<float> Uniform(size_t n, float lo, float hi, std::mt19937& rng) {
@@ -156,7 +133,7 @@ void BM_Deform(benchmark::State& state) {
     return;
   }
   DeformBench bench;
-  if (!bench.Init(state.range(0) == 0 ? N3dvConfig() : DnerfConfig(), static_cast<int>(state.range(1)))) {
+  if (!bench.Init(DatasetDeformation(state.range(0) == 0 ? "n3dv" : "dnerf"), static_cast<int>(state.range(1)))) {
     state.SkipWithError("setup failed");
     return;
   }
@@ -187,7 +164,7 @@ void BM_Regularizer(benchmark::State& state) {
     return;
   }
   DeformBench bench;
-  if (!bench.Init(N3dvConfig(), 1)) {
+  if (!bench.Init(DatasetDeformation("n3dv"), 1)) {
     state.SkipWithError("setup failed");
     return;
   }

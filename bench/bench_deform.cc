@@ -11,33 +11,12 @@
 
 #include <random>
 
+#include "bench_configs.h"
 #include "atex/deform.h"
 
 namespace {
 
 constexpr size_t kGaussians = 100000;
-
-atex::DeformationConfig DnerfConfig() {
-  atex::DeformationConfig c;  // the defaults are D-NeRF's
-  c.grid.channels = 32;
-  c.grid.base_resolution = {64, 64, 64, 25};
-  c.grid.multires = {1, 2};
-  c.mlp_width = 64;
-  c.heads = {true, true, true, false, false};
-  c.sh_coeffs = 1;
-  return c;
-}
-
-atex::DeformationConfig N3dvConfig() {
-  atex::DeformationConfig c;
-  c.grid.channels = 16;
-  c.grid.base_resolution = {64, 64, 64, 150};
-  c.grid.multires = {1, 2};
-  c.mlp_width = 128;
-  c.heads = {true, true, true, true, true};
-  c.sh_coeffs = 16;
-  return c;
-}
 
 struct Scene {
   atex::DeformationField field;
@@ -103,11 +82,11 @@ void ForwardBackward(benchmark::State& state, const Scene& scene) {
 }
 
 const Scene& Dnerf() {
-  static const Scene scene = MakeScene(DnerfConfig(), 0);
+  static const Scene scene = MakeScene(DatasetDeformation("dnerf"), 0);
   return scene;
 }
 const Scene& N3dv() {
-  static const Scene scene = MakeScene(N3dvConfig(), 3);
+  static const Scene scene = MakeScene(DatasetDeformation("n3dv"), 3);
   return scene;
 }
 

@@ -22,4 +22,7 @@ Status LoadAssetIntoBackend(const std::string& path, train::Backend* backend, As
 StatusOr<std::unique_ptr<Dataset>> OpenDatasetArgs(const std::string& path, const std::string& kind, int timesteps,
                                                    int downscale, int timestep_stride = 1, int train_cameras = 0);
 
+// "test:3" / "train:12": the index-th view of that split (errors name the spec).
+StatusOr<View> PickView(const Dataset& data, const std::string& spec);
+
 }  // namespace atex::cli

@@ -19,15 +19,7 @@ struct EvalArgs {
 int RunEval(const EvalArgs& a) {
   using namespace atex;
   const char* cmd = "eval";
-  DatasetOptions dopts;
-  auto kind = ParseDatasetKind(a.kind);
-  if (!kind.ok()) return cli::Fail(cmd, kind.status());
-  dopts.kind = *kind;
-  dopts.max_timesteps = a.timesteps;
-  dopts.downscale = a.downscale;
-  dopts.timestep_stride = a.timestep_stride;
-  dopts.train_cameras = a.train_cameras;
-  auto dataset = OpenDataset(a.data, dopts);
+  auto dataset = cli::OpenDatasetArgs(a.data, a.kind, a.timesteps, a.downscale, a.timestep_stride, a.train_cameras);
   if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
   auto backend = cli::SelectBackend(a.backend);
   if (!backend.ok()) return cli::Fail(cmd, backend.status());

@@ -196,12 +196,7 @@ int RunFit(const FitArgs& a) {
         return e.mean.psnr >= a.quality;
       };
     } else {
-      ATEX_ASSIGN_OR_RETURN(uint64_t minimum, fit::MinimumBytes(start, start_write));
-      if (target < minimum) {
-        return MakeError(StatusCode::kBudgetTooSmall, "budget of ", target,
-                         " bytes is below the smallest valid asset for this input, ", minimum,
-                         " bytes (one Gaussian, SH degree 0, 1x1 textures, every stream q8)");
-      }
+      ATEX_RETURN_IF_ERROR(fit::CheckBudget(start, start_write, target));
     }
     ATEX_ASSIGN_OR_RETURN(fit::Plan plan, fit::BuildPlan(start, &renderer, o));
     shared_plan = plan;

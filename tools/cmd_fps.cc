@@ -38,18 +38,12 @@ atex::Camera Reframe(const atex::Camera& c, int width, int height) {
 int RunFps(const FpsArgs& a) {
   using namespace atex;
   const char* cmd = "fps";
-  DatasetOptions dopts;
-  auto kind = ParseDatasetKind(a.kind);
-  if (!kind.ok()) return cli::Fail(cmd, kind.status());
-  dopts.kind = *kind;
-  dopts.max_timesteps = a.timesteps;
-  auto dataset = OpenDataset(a.data, dopts);
+  auto dataset = cli::OpenDatasetArgs(a.data, a.kind, a.timesteps, 1);
   if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
-  const auto& views = a.view.rfind("train", 0) == 0 ? (*dataset)->train_views() : (*dataset)->test_views();
-  const size_t colon = a.view.find(':');
-  const size_t index = colon == std::string::npos ? 0 : std::stoul(a.view.substr(colon + 1));
-  if (index >= views.size()) return cli::Fail(cmd, MakeError(StatusCode::kNotFound, "no view ", a.view));
-  Camera camera = views[index].camera;
+  // A malformed --view is an error with the spec, never an exception.
+  auto view = cli::PickView(**dataset, a.view);
+  if (!view.ok()) return cli::Fail(cmd, view.status());
+  Camera camera = view->camera;
   if (!a.size.empty()) {
     int w = 0, h = 0;
     if (std::sscanf(a.size.c_str(), "%dx%d", &w, &h) != 2 || w <= 0 || h <= 0) {

@@ -18,26 +18,6 @@ struct RenderArgs {
   bool json = false;
 };
 
-// "test:3" / "train:12": the index-th view of that split.
-atex::StatusOr<atex::View> PickView(const atex::Dataset& data, const std::string& spec) {
-  using namespace atex;
-  const size_t colon = spec.find(':');
-  const std::string split = spec.substr(0, colon);
-  const std::vector<View>* views = split == "test" ? &data.test_views() : split == "train" ? &data.train_views() : nullptr;
-  if (views == nullptr || colon == std::string::npos) {
-    return MakeError(StatusCode::kInvalidArgument, "--view '", spec, "' is not test:N or train:N");
-  }
-  size_t index = 0;
-  try {
-    index = std::stoul(spec.substr(colon + 1));
-  } catch (...) {
-    return MakeError(StatusCode::kInvalidArgument, "--view '", spec, "': bad index");
-  }
-  if (index >= views->size()) {
-    return MakeError(StatusCode::kNotFound, "--view ", spec, ": the ", split, " split has ", views->size(), " views");
-  }
-  return (*views)[index];
-}
 
 int RunRender(const RenderArgs& a) {
   using namespace atex;
@@ -48,7 +28,7 @@ int RunRender(const RenderArgs& a) {
     auto opened = cli::OpenDatasetArgs(a.data, a.kind, a.timesteps, a.downscale);
     if (!opened.ok()) return cli::Fail(cmd, opened.status());
     dataset = std::move(*opened);
-    auto picked = PickView(*dataset, a.view);
+    auto picked = cli::PickView(*dataset, a.view);
     if (!picked.ok()) return cli::Fail(cmd, picked.status());
     view = *picked;
   } else {

@@ -3,6 +3,7 @@
 #include <fstream>
 #include <iostream>
 
+#include "asset_view.h"
 #include "atex/container.h"
 #include "atex/dataset.h"
 #include "atex/file_io.h"
@@ -66,15 +67,7 @@ int RunTrain(const TrainArgs& a) {
     std::cerr << "atex train: --data and --out are required (see --help)\n";
     return cli::kExitUsage;
   }
-  DatasetOptions dopts;
-  auto kind = ParseDatasetKind(a.kind);
-  if (!kind.ok()) return cli::Fail(cmd, kind.status());
-  dopts.kind = *kind;
-  dopts.max_timesteps = a.timesteps;
-  dopts.downscale = a.downscale;
-  dopts.timestep_stride = a.timestep_stride;
-  dopts.train_cameras = a.train_cameras;
-  auto dataset = OpenDataset(a.data, dopts);
+  auto dataset = cli::OpenDatasetArgs(a.data, a.kind, a.timesteps, a.downscale, a.timestep_stride, a.train_cameras);
   if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
   for (const auto& w : (*dataset)->warnings()) std::cerr << "atex train: note: " << w << "\n";
   auto config = BuildConfig(a, dataset->get());

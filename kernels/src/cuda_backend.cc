@@ -150,18 +150,9 @@ class CudaBackend final : public Backend {
   }
 
   Status Save(ModelState* state) override {
-    ATEX_RETURN_IF_ERROR(ReadGaussians(&state->gaussians));
-    state->m_gaussians.sh_degree = state->v_gaussians.sh_degree = sh_degree_;
-    ATEX_RETURN_IF_ERROR(positions_.m.Download(&state->m_gaussians.positions, stream_));
-    ATEX_RETURN_IF_ERROR(positions_.v.Download(&state->v_gaussians.positions, stream_));
-    ATEX_RETURN_IF_ERROR(rotations_.m.Download(&state->m_gaussians.rotations, stream_));
-    ATEX_RETURN_IF_ERROR(rotations_.v.Download(&state->v_gaussians.rotations, stream_));
-    ATEX_RETURN_IF_ERROR(log_scales_.m.Download(&state->m_gaussians.log_scales, stream_));
-    ATEX_RETURN_IF_ERROR(log_scales_.v.Download(&state->v_gaussians.log_scales, stream_));
-    ATEX_RETURN_IF_ERROR(opacity_.m.Download(&state->m_gaussians.opacity_logits, stream_));
-    ATEX_RETURN_IF_ERROR(opacity_.v.Download(&state->v_gaussians.opacity_logits, stream_));
-    ATEX_RETURN_IF_ERROR(sh_.m.Download(&state->m_gaussians.sh, stream_));
-    ATEX_RETURN_IF_ERROR(sh_.v.Download(&state->v_gaussians.sh, stream_));
+    ATEX_RETURN_IF_ERROR(DownloadGaussians(&Param::value, &state->gaussians));
+    ATEX_RETURN_IF_ERROR(DownloadGaussians(&Param::m, &state->m_gaussians));
+    ATEX_RETURN_IF_ERROR(DownloadGaussians(&Param::v, &state->v_gaussians));
     if (has_textures_) {
       TexturePool pool = layout_;
       ATEX_RETURN_IF_ERROR(texels_.value.Download(&pool.texels, stream_));
@@ -190,13 +181,17 @@ class CudaBackend final : public Backend {
     return Status::Ok();
   }
 
-  Status ReadGaussians(Gaussians* g) override {
-    g->sh_degree = sh_degree_;
-    ATEX_RETURN_IF_ERROR(positions_.value.Download(&g->positions, stream_));
-    ATEX_RETURN_IF_ERROR(rotations_.value.Download(&g->rotations, stream_));
-    ATEX_RETURN_IF_ERROR(log_scales_.value.Download(&g->log_scales, stream_));
-    ATEX_RETURN_IF_ERROR(opacity_.value.Download(&g->opacity_logits, stream_));
-    return sh_.value.Download(&g->sh, stream_);
+  Status ReadGaussians(Gaussians* g) override { return DownloadGaussians(&Param::value, g); }
+
+  // One of the per-Gaussian tensors of every group (values, gradients or an Adam moment),
+  // shaped as Gaussians.
+  Status DownloadGaussians(DeviceBuffer<float> Param::*which, Gaussians* out) {
+    out->sh_degree = sh_degree_;
+    ATEX_RETURN_IF_ERROR((positions_.*which).Download(&out->positions, stream_));
+    ATEX_RETURN_IF_ERROR((rotations_.*which).Download(&out->rotations, stream_));
+    ATEX_RETURN_IF_ERROR((log_scales_.*which).Download(&out->log_scales, stream_));
+    ATEX_RETURN_IF_ERROR((opacity_.*which).Download(&out->opacity_logits, stream_));
+    return (sh_.*which).Download(&out->sh, stream_);
   }
 
   StatusOr<train::StepResult> Step(const train::StepRequest& request,
@@ -282,12 +277,7 @@ class CudaBackend final : public Backend {
 
   Status ReadGradients(ModelState* out) override {
     *out = ModelState{};
-    out->gaussians.sh_degree = sh_degree_;
-    ATEX_RETURN_IF_ERROR(positions_.grad.Download(&out->gaussians.positions, stream_));
-    ATEX_RETURN_IF_ERROR(rotations_.grad.Download(&out->gaussians.rotations, stream_));
-    ATEX_RETURN_IF_ERROR(log_scales_.grad.Download(&out->gaussians.log_scales, stream_));
-    ATEX_RETURN_IF_ERROR(opacity_.grad.Download(&out->gaussians.opacity_logits, stream_));
-    ATEX_RETURN_IF_ERROR(sh_.grad.Download(&out->gaussians.sh, stream_));
+    ATEX_RETURN_IF_ERROR(DownloadGaussians(&Param::grad, &out->gaussians));
     if (has_textures_) {
       TexturePool pool = layout_;
       ATEX_RETURN_IF_ERROR(texels_.grad.Download(&pool.texels, stream_));

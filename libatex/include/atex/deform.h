@@ -122,28 +122,34 @@ size_t ParameterCount(const BasicDeformationField<T>& field);
 
 // ---------------------------------------------------------------------------
 // Template definitions of the conversions (header-only so any U, T pair works).
-template <typename U, typename T>
-BasicDeformationField<U> Cast(const BasicDeformationField<T>& field) {
-  auto convert = [](const std::vector<T>& v) { return std::vector<U>(v.begin(), v.end()); };
-  auto convert_linear = [&](const BasicLinear<T>& l) {
+// A field of the same shapes whose every parameter array is map(array) (a
+// std::vector<U> of the same length).
+template <typename U, typename T, typename Map>
+BasicDeformationField<U> MapDeformationField(const BasicDeformationField<T>& field, Map map) {
+  auto map_linear = [&](const BasicLinear<T>& l) {
     BasicLinear<U> out;
     out.in = l.in;
     out.out = l.out;
-    out.weight = convert(l.weight);
-    out.bias = convert(l.bias);
+    out.weight = map(l.weight);
+    out.bias = map(l.bias);
     return out;
   };
   BasicDeformationField<U> out;
   out.config = field.config;
   out.planes.resize(field.planes.size());
   for (size_t s = 0; s < field.planes.size(); ++s) {
-    for (int p = 0; p < kNumHexPlanes; ++p) out.planes[s][p] = convert(field.planes[s][p]);
+    for (int p = 0; p < kNumHexPlanes; ++p) out.planes[s][p] = map(field.planes[s][p]);
   }
-  for (const auto& l : field.trunk) out.trunk.push_back(convert_linear(l));
+  for (const auto& l : field.trunk) out.trunk.push_back(map_linear(l));
   for (int h = 0; h < kNumDeformHeads; ++h) {
-    for (int k = 0; k < 2; ++k) out.heads[h][k] = convert_linear(field.heads[h][k]);
+    for (int k = 0; k < 2; ++k) out.heads[h][k] = map_linear(field.heads[h][k]);
   }
   return out;
+}
+
+template <typename U, typename T>
+BasicDeformationField<U> Cast(const BasicDeformationField<T>& field) {
+  return MapDeformationField<U>(field, [](const std::vector<T>& v) { return std::vector<U>(v.begin(), v.end()); });
 }
 
 template <typename U, typename T>

@@ -137,6 +137,8 @@ StatusOr<WriteOptions> EncodingsOfFile(const uint8_t* data, size_t size, const W
 // Smallest valid asset for `asset`'s structure: one Gaussian (the most important),
 // SH degree 0, 1×1 textures, every stream q8, grids at the minimum resolution.
 StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, int min_grid_resolution = 4);
+// kBudgetTooSmall, naming MinimumBytes, when `budget_bytes` is below it; OK otherwise.
+Status CheckBudget(const Asset& asset, const WriteOptions& write, uint64_t budget_bytes, int min_grid_resolution = 4);
 
 // Builds the plan (see the file comment). `renderer` measures distortion.
 StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const PlanOptions& options);

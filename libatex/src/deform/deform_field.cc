@@ -215,26 +215,7 @@ StatusOr<DeformationField> InitDeformationField(const DeformationConfig& config,
 
 template <typename T>
 BasicDeformationField<T> ZerosLike(const BasicDeformationField<T>& field) {
-  auto zero = [](const std::vector<T>& v) { return std::vector<T>(v.size(), T(0)); };
-  auto zero_linear = [&](const BasicLinear<T>& l) {
-    BasicLinear<T> out;
-    out.in = l.in;
-    out.out = l.out;
-    out.weight = zero(l.weight);
-    out.bias = zero(l.bias);
-    return out;
-  };
-  BasicDeformationField<T> out;
-  out.config = field.config;
-  out.planes.resize(field.planes.size());
-  for (size_t s = 0; s < field.planes.size(); ++s) {
-    for (int p = 0; p < kNumHexPlanes; ++p) out.planes[s][p] = zero(field.planes[s][p]);
-  }
-  for (const auto& l : field.trunk) out.trunk.push_back(zero_linear(l));
-  for (int h = 0; h < kNumDeformHeads; ++h) {
-    for (int k = 0; k < 2; ++k) out.heads[h][k] = zero_linear(field.heads[h][k]);
-  }
-  return out;
+  return MapDeformationField<T>(field, [](const std::vector<T>& v) { return std::vector<T>(v.size(), T(0)); });
 }
 
 template <typename T>

@@ -217,6 +217,11 @@ TEST(Plan, BudgetBelowTheMinimumIsNamed) {
   auto plan = BuildPlan(a, &renderer, o);
   ASSERT_TRUE(plan.ok());
   EXPECT_LE(plan->moves.back().bytes_after, *minimum) << "the plan reaches the minimum";
+  // Below it: kBudgetTooSmall naming the minimum; at it: fine.
+  const Status below = CheckBudget(a, w, *minimum - 1);
+  EXPECT_EQ(below.code(), StatusCode::kBudgetTooSmall);
+  EXPECT_NE(below.message().find(std::to_string(*minimum)), std::string::npos) << below.ToString();
+  EXPECT_TRUE(CheckBudget(a, w, *minimum).ok());
 }
 
 TEST(KeepCount, SubsetsAreIdenticalAcrossTextureModes) {

@@ -142,16 +142,10 @@ Status ApplyMove(const Move& move, const std::vector<uint32_t>& prune_order, Ass
       *kept = std::move(still);
       return Status::Ok();
     }
-    case Lever::kTextures: {
-      ATEX_ASSIGN_OR_RETURN(uint64_t done, ShrinkTextures(asset, move.count));
-      (void)done;
-      return Status::Ok();
-    }
-    case Lever::kShDegree: {
-      ATEX_RETURN_IF_ERROR(LowerShDegree(asset));
-      // A degree-0 asset has no SH-rest stream; keep its encoding field meaningful anyway.
-      return Status::Ok();
-    }
+    case Lever::kTextures:
+      return ShrinkTextures(asset, move.count).status();
+    case Lever::kShDegree:
+      return LowerShDegree(asset);
     case Lever::kEncoding:
       SetEncoding(write, move.stream, move.encoding);
       return Status::Ok();
@@ -195,13 +189,22 @@ StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, i
   const std::vector<uint32_t> order = ImportanceOrder(asset, 0);
   ATEX_ASSIGN_OR_RETURN(Asset smallest, KeepMostImportant(asset, order, 1.0 / static_cast<double>(asset.gaussians.size())));
   while (smallest.gaussians.sh_degree > 0) ATEX_RETURN_IF_ERROR(LowerShDegree(&smallest));
-  ATEX_ASSIGN_OR_RETURN(uint64_t shrunk, ShrinkTextures(&smallest, std::numeric_limits<uint64_t>::max()));
-  (void)shrunk;
+  ATEX_RETURN_IF_ERROR(ShrinkTextures(&smallest, std::numeric_limits<uint64_t>::max()).status());
   while (CanCoarsenGrid(smallest, min_grid_resolution)) ATEX_RETURN_IF_ERROR(CoarsenGrid(&smallest, min_grid_resolution));
   WriteOptions w = write;
   for (int s = 0; s < static_cast<int>(Stream::kCount); ++s) SetEncoding(&w, static_cast<Stream>(s), ScalarEncoding::kQuant8);
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(smallest, w));
   return static_cast<uint64_t>(bytes.size());
+}
+
+Status CheckBudget(const Asset& asset, const WriteOptions& write, uint64_t budget_bytes, int min_grid_resolution) {
+  ATEX_ASSIGN_OR_RETURN(uint64_t minimum, MinimumBytes(asset, write, min_grid_resolution));
+  if (budget_bytes < minimum) {
+    return MakeError(StatusCode::kBudgetTooSmall, "budget of ", budget_bytes,
+                     " bytes is below the smallest valid asset for this input, ", minimum,
+                     " bytes (one Gaussian, SH degree 0, 1x1 textures, every stream q8)");
+  }
+  return Status::Ok();
 }
 
 namespace {
@@ -306,87 +309,93 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   plan.initial_bytes = current.bytes;
   plan.initial_distortion = current.distortion;
 
-  // Lazy greedy: each proposal keeps the cost per byte measured at an earlier state; only
-  // the best is re-measured before it is accepted (costs change slowly between moves).
+  // Lazy greedy: each proposal keeps the cost per byte measured at an earlier state
+  // (costs change slowly between moves); a stale best is measured again, and a move is
+  // taken only when the best cost is a fresh one (measured at the current state).
   struct Cached {
     double ratio = 0;
     uint64_t saving = 0;
     bool fresh = false;
   };
-  std::map<MoveKey, Cached> cache;
   constexpr double kNoGain = std::numeric_limits<double>::infinity();
-  const auto evaluate = [&](const Move& proposal) -> StatusOr<std::pair<Cached, Measured>> {
-    State next = state;
-    Move m = proposal;
-    Status applied = ApplyMove(m, plan.prune_order, &next.asset, &next.write, &next.kept, options.min_grid_resolution);
-    if (!applied.ok()) return std::pair<Cached, Measured>{Cached{kNoGain, 0, true}, Measured{}};
-    auto measured = Measure(next, renderer, reference);
+  struct Evaluated {
+    Cached cost;
+    Measured measured;
+    State next;     // the state after the move (kept only for the best fresh evaluation)
+    Asset decoded;  // what a reader of `next` gets (for accept_more)
+  };
+  const auto better = [](const Cached& a, const Cached& b) {
+    return a.ratio < b.ratio || (a.ratio == b.ratio && a.saving > b.saving);
+  };
+  const auto evaluate = [&](const Move& proposal) -> StatusOr<Evaluated> {
+    Evaluated e;
+    e.cost = Cached{kNoGain, 0, true};
+    e.next = state;
+    if (!ApplyMove(proposal, plan.prune_order, &e.next.asset, &e.next.write, &e.next.kept,
+                   options.min_grid_resolution)
+             .ok()) {
+      return e;  // a move the state cannot take (e.g. nothing left to halve) is not a move
+    }
+    auto measured = Measure(e.next, renderer, reference, &e.decoded);
     if (!measured.ok()) {
       // A stream that an encoding cannot hold (f16 overflow) is simply not a move.
-      if (measured.status().code() == StatusCode::kOutOfRange) {
-        return std::pair<Cached, Measured>{Cached{kNoGain, 0, true}, Measured{}};
-      }
+      if (measured.status().code() == StatusCode::kOutOfRange) return e;
       return measured.status();
     }
-    if (measured->bytes >= current.bytes) return std::pair<Cached, Measured>{Cached{kNoGain, 0, true}, *measured};
+    e.measured = *measured;
+    if (measured->bytes >= current.bytes) return e;
     const uint64_t saving = current.bytes - measured->bytes;
     const double damage = std::max(0.0, measured->distortion - current.distortion);
-    return std::pair<Cached, Measured>{Cached{damage / static_cast<double>(saving), saving, true}, *measured};
+    e.cost = Cached{damage / static_cast<double>(saving), saving, true};
+    return e;
   };
 
+  std::map<MoveKey, Cached> cache;
   while (current.bytes > options.floor_bytes) {
     const std::vector<Move> proposals = Proposals(state, options);
     if (proposals.empty()) break;
+    // The best evaluation made at the current state, with its state and decoded asset.
+    std::optional<std::pair<MoveKey, Evaluated>> best_fresh;
+    const auto remember = [&](const Move& p, Evaluated e) {
+      cache[KeyOf(p)] = e.cost;
+      if (e.cost.ratio != kNoGain && (!best_fresh || better(e.cost, best_fresh->second.cost))) {
+        best_fresh.emplace(KeyOf(p), std::move(e));
+      }
+    };
     for (const Move& p : proposals) {
       if (cache.count(KeyOf(p)) == 0) {
-        ATEX_ASSIGN_OR_RETURN(auto result, evaluate(p));
-        cache[KeyOf(p)] = result.first;
+        ATEX_ASSIGN_OR_RETURN(Evaluated e, evaluate(p));
+        remember(p, std::move(e));
       }
     }
-    // Pick: best ratio; a stale best is re-measured first.
-    const auto better = [](const Cached& a, const Cached& b) {
-      return a.ratio < b.ratio || (a.ratio == b.ratio && a.saving > b.saving);
-    };
+    // Each pass either takes a fresh best or refreshes a stale one, so proposals.size() + 1
+    // passes always suffice.
     const Move* chosen = nullptr;
-    Measured chosen_measure;
-    for (int guard = 0; guard < 64 && chosen == nullptr; ++guard) {
+    for (size_t pass = 0; pass <= proposals.size() && chosen == nullptr; ++pass) {
       const Move* best = nullptr;
-      const Move* second = nullptr;
       for (const Move& p : proposals) {
-        const Cached& c = cache[KeyOf(p)];
-        if (best == nullptr || better(c, cache[KeyOf(*best)])) {
-          second = best;
-          best = &p;
-        } else if (second == nullptr || better(c, cache[KeyOf(*second)])) {
-          second = &p;
-        }
+        if (best == nullptr || better(cache[KeyOf(p)], cache[KeyOf(*best)])) best = &p;
       }
-      if (best == nullptr || cache[KeyOf(*best)].ratio == kNoGain) break;
-      ATEX_ASSIGN_OR_RETURN(auto result, evaluate(*best));
-      cache[KeyOf(*best)] = result.first;
-      if (result.first.ratio == kNoGain) continue;
-      if (second == nullptr || !better(cache[KeyOf(*second)], result.first) || guard == 63) {
+      const Cached& cost = cache[KeyOf(*best)];
+      if (cost.ratio == kNoGain) break;
+      if (cost.fresh && best_fresh && best_fresh->first == KeyOf(*best)) {
         chosen = best;
-        chosen_measure = result.second;
+      } else {
+        ATEX_ASSIGN_OR_RETURN(Evaluated e, evaluate(*best));
+        remember(*best, std::move(e));
       }
     }
     if (chosen == nullptr) break;  // no lever saves bytes any more
+    Evaluated& taken = best_fresh->second;
     Move move = *chosen;
-    State next = state;
-    ATEX_RETURN_IF_ERROR(
-        ApplyMove(move, plan.prune_order, &next.asset, &next.write, &next.kept, options.min_grid_resolution));
-    move.bytes_after = chosen_measure.bytes;
-    move.distortion_after = chosen_measure.distortion;
+    move.bytes_after = taken.measured.bytes;
+    move.distortion_after = taken.measured.distortion;
     if (options.accept_more) {
-      ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(next.asset, next.write));
-      ReadOptions read;
-      read.read_stats = false;
-      ATEX_ASSIGN_OR_RETURN(Asset decoded, DecodeAsset(bytes.data(), bytes.size(), read));
-      ATEX_ASSIGN_OR_RETURN(bool more, options.accept_more(decoded, move));
+      ATEX_ASSIGN_OR_RETURN(bool more, options.accept_more(taken.decoded, move));
       if (!more) break;
     }
-    state = std::move(next);
-    current = chosen_measure;
+    state = std::move(taken.next);
+    current = taken.measured;
     plan.moves.push_back(move);
     for (auto& entry : cache) entry.second.fresh = false;
     cache.erase(KeyOf(move));  // its next step is a different move (new count, new encoding)
