@@ -13,6 +13,7 @@
 #include "atex/converters/gltf.h"
 #include "atex/converters/splatv.h"
 #include "atex/file_io.h"
+#include "atex/converters/convert.h"
 #include "cli.h"
 
 namespace {
@@ -38,21 +39,6 @@ std::string Lower(std::string s) {
 }
 
 // "a:b:step" -> a, a+step, ... <= b.
-atex::StatusOr<std::vector<double>> ParseFrames(const std::string& text) {
-  double a = 0, b = 0, step = 0;
-  char extra = 0;
-  if (std::sscanf(text.c_str(), "%lf:%lf:%lf%c", &a, &b, &step, &extra) != 3 || !std::isfinite(a) || !std::isfinite(b) ||
-      !(step > 0)) {
-    return atex::MakeError(atex::StatusCode::kInvalidArgument, "--frames '", text, "' is not start:end:step with step > 0");
-  }
-  if (b < a) return atex::MakeError(atex::StatusCode::kInvalidArgument, "--frames end ", b, " is before start ", a);
-  const double count = std::floor((b - a) / step + 1e-9) + 1;
-  if (count > 100000) return atex::MakeError(atex::StatusCode::kInvalidArgument, "--frames would write ", count, " files");
-  std::vector<double> times;
-  for (int i = 0; i < int(count); ++i) times.push_back(a + i * step);
-  return times;
-}
-
 double Seconds(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
@@ -87,8 +73,11 @@ int RunExport(const ExportArgs& a) {
   const auto write_start = std::chrono::steady_clock::now();
 
   if (!a.frames.empty()) {
-    auto times = ParseFrames(a.frames);
-    if (!times.ok()) return atex::cli::Fail("export", times.status());
+    // The same START:END:STEP grammar as `atex convert --frames`.
+    auto range = atex::ParseFrameRange(a.frames);
+    if (!range.ok()) return atex::cli::Fail("export", range.status());
+    const std::vector<double> frame_times = range->Times();
+    const std::vector<double>* times = &frame_times;
     if (!asset->deformation) {
       return atex::cli::Fail("export", atex::MakeError(atex::StatusCode::kInvalidArgument, "--frames needs an asset with motion"));
     }
