@@ -39,6 +39,11 @@ int Fail(std::string_view command, const Status& status);
 // Writes JSON (indented) to stdout followed by a newline.
 void PrintJson(const nlohmann::json& json);
 
+// The dataset options shared by the commands that open --data: --dataset-kind,
+// --timesteps, --downscale, --timestep-stride, --train-cameras.
+void AddDatasetOptions(CLI::App& app, std::string* kind, int* timesteps, int* downscale, int* timestep_stride,
+                       int* train_cameras);
+
 // A single-line progress display on stderr (redrawn in place on a terminal,
 // one line per ~2 s otherwise so that logs stay short).
 class Progress {

@@ -61,15 +61,7 @@ atex::cli::Runner SetupEval(CLI::App& app) {
   app.add_option("--data", a->data, "Dataset folder or .npz")->required();
   app.add_option("--split", a->split, "test or train")->capture_default_str();
   app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
-  app.add_option("--dataset-kind", a->kind, "auto, panoptic, dnerf, dnerf-npz, n3dv")->capture_default_str();
-  app.add_option("--timesteps", a->timesteps, "Use only the first N timesteps (0 = all present)");
-  app.add_option("--downscale", a->downscale, "Integer image downscale factor")->capture_default_str();
-  app.add_option("--timestep-stride", a->timestep_stride,
-                 "Keep every K-th timestep (both splits; times unchanged): K times faster motion")
-      ->capture_default_str();
-  app.add_option("--train-cameras", a->train_cameras,
-                 "Use N evenly spaced training cameras (sorted ids, ids[i*M/N]; 0 = all)")
-      ->capture_default_str();
+  atex::cli::AddDatasetOptions(app, &a->kind, &a->timesteps, &a->downscale, &a->timestep_stride, &a->train_cameras);
   app.add_flag("--json", a->json, "Machine-readable output");
   return [a]() { return RunEval(*a); };
 }

@@ -165,15 +165,7 @@ atex::cli::Runner SetupTrain(CLI::App& app) {
   app.add_option("--checkpoint-every", a->checkpoint_every, "Steps between checkpoints (overrides the config)");
   app.add_option("--resume", a->resume, "Continue from a checkpoint folder");
   app.add_option("--metrics", a->metrics, "Write a metrics CSV (one row per logged step)");
-  app.add_option("--dataset-kind", a->kind, "auto, panoptic, dnerf, dnerf-npz, n3dv")->capture_default_str();
-  app.add_option("--timesteps", a->timesteps, "Use only the first N timesteps (0 = all present)");
-  app.add_option("--downscale", a->downscale, "Integer image downscale factor")->capture_default_str();
-  app.add_option("--timestep-stride", a->timestep_stride,
-                 "Keep every K-th timestep (both splits; times unchanged): K times faster motion")
-      ->capture_default_str();
-  app.add_option("--train-cameras", a->train_cameras,
-                 "Use N evenly spaced training cameras (sorted ids, ids[i*M/N]; 0 = all)")
-      ->capture_default_str();
+  atex::cli::AddDatasetOptions(app, &a->kind, &a->timesteps, &a->downscale, &a->timestep_stride, &a->train_cameras);
   app.add_option("--seed", a->seed, "Random seed (default: the config's, 6666)");
   app.add_flag("--print-config", a->print_config, "Print the default config as JSON and exit");
   app.add_flag("--fp32", a->fp32, "CUDA: full FP32 for the deformation MLP (default: TF32 tensor cores)");

@@ -17,11 +17,15 @@
 namespace atex::fit {
 namespace {
 
+// The committed lego sample of samples/ (ATEX_SOURCE_DIR is set by CTest).
+std::filesystem::path SamplePath() {
+  const char* source = std::getenv("ATEX_SOURCE_DIR");
+  return std::filesystem::path(source ? source : ".") / "samples" / "lego_adaptive_2MiB.atex";
+}
+
 TEST(FitLego, TestPsnrNeverRisesAsTheBudgetShrinks) {
   ATEX_REQUIRE_DATA_FILE(data, "dnerf_lego_tiny/tiny_dnerf_data.npz");
-  const std::filesystem::path sample =
-      std::filesystem::path(std::getenv("ATEX_SOURCE_DIR") ? std::getenv("ATEX_SOURCE_DIR") : ".") / "samples" /
-      "lego_adaptive_2MiB.atex";
+  const std::filesystem::path sample = SamplePath();
   ASSERT_TRUE(std::filesystem::exists(sample)) << sample;
   auto bytes = ReadFileBytes(sample.string());
   ASSERT_TRUE(bytes.ok());
@@ -76,9 +80,7 @@ namespace {
 // asset's own texture pool (sizes and texels as fitted), its Gaussians and its SH degree.
 TEST(FitLego, FinetuneKeepsTheFittedTexturePool) {
   ATEX_REQUIRE_DATA_FILE(data, "dnerf_lego_tiny/tiny_dnerf_data.npz");
-  const std::filesystem::path sample =
-      std::filesystem::path(std::getenv("ATEX_SOURCE_DIR") ? std::getenv("ATEX_SOURCE_DIR") : ".") / "samples" /
-      "lego_adaptive_2MiB.atex";
+  const std::filesystem::path sample = SamplePath();
   auto asset = ReadAssetFile(sample.string());
   ASSERT_TRUE(asset.ok()) << asset.status().ToString();
   // Give the pool different sizes, as a fit of a grown asset would have.
