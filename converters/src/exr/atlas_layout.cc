@@ -119,7 +119,8 @@ Status ParseSidecar(std::string_view text, const ExrAtlasReadOptions& options, A
   if (json.is_discarded() || !json.is_object()) {
     return MakeError(StatusCode::kCorrupt, "atlas sidecar is not a JSON object");
   }
-  if (json.value("format", std::string()) != kFormat) {
+  const auto format = json.find("format");
+  if (format == json.end() || !format->is_string() || format->get<std::string>() != kFormat) {
     return MakeError(StatusCode::kBadMagic, "atlas sidecar: 'format' is not \"", kFormat, "\"");
   }
   ATEX_ASSIGN_OR_RETURN(uint64_t version, GetUint(json, "version"));

@@ -10,6 +10,8 @@
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+
+#include "atex/image.h"
 #include <OpenEXR/ImfIO.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfIntAttribute.h>
@@ -100,6 +102,13 @@ StatusOr<HalfImage> DecodeHalfImage(const uint8_t* data, size_t size, uint64_t m
   // OpenEXR's magic number, checked here for a clear message.
   if (size < 4 || data[0] != 0x76 || data[1] != 0x2f || data[2] != 0x31 || data[3] != 0x01) {
     return MakeError(StatusCode::kBadMagic, "not an OpenEXR file (magic 76 2f 31 01 missing)");
+  }
+  // libatex's header scan first: OpenEXR's InputFile sizes its line buffers from the
+  // header while it is constructed, so a forged data window must be refused before that.
+  ATEX_ASSIGN_OR_RETURN(const ImageInfo info, ImageInfoFromBytes(data, size, "EXR atlas"));
+  if (static_cast<uint64_t>(info.width) * static_cast<uint64_t>(info.height) > max_pixels) {
+    return MakeError(StatusCode::kLimitExceeded, "EXR data window ", info.width, " x ", info.height,
+                     " is above the reader's limit of ", max_pixels, " pixels");
   }
   try {
     MemoryIStream stream(data, size);

@@ -60,6 +60,10 @@ StatusOr<Image> ReadImage(const std::string& path);
 StatusOr<Image> DecodeImage(const uint8_t* data, size_t size, const std::string& what);
 // Dimensions and channels from the header only (no pixel decoding).
 StatusOr<ImageInfo> ReadImageInfo(const std::string& path);
+// The same for bytes in memory. For EXR the header is checked by our own scan before
+// OpenEXR sees it (forged sizes are refused before OpenEXR allocates buffers from them),
+// so this is the safe first step for any reader that hands EXR bytes to OpenEXR.
+StatusOr<ImageInfo> ImageInfoFromBytes(const uint8_t* data, size_t size, const std::string& what);
 
 // Encodes to a format: PNG 8-bit (or 16-bit with png_bit_depth = 16), JPEG at
 // `jpeg_quality` (alpha dropped), EXR half float with ZIP compression. Values

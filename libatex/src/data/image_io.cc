@@ -77,13 +77,17 @@ StatusOr<Image> ReadImage(const std::string& path) {
 
 StatusOr<ImageInfo> ReadImageInfo(const std::string& path) {
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, ReadFileBytes(path, kMaxImageFileBytes));
-  switch (DetectFormat(bytes.data(), bytes.size())) {
-    case Detected::kPng: return image_detail::PngInfo(bytes.data(), bytes.size(), path);
-    case Detected::kJpeg: return image_detail::JpegInfo(bytes.data(), bytes.size(), path);
-    case Detected::kExr: return image_detail::ExrInfo(bytes.data(), bytes.size(), path);
+  return ImageInfoFromBytes(bytes.data(), bytes.size(), path);
+}
+
+StatusOr<ImageInfo> ImageInfoFromBytes(const uint8_t* data, size_t size, const std::string& what) {
+  switch (DetectFormat(data, size)) {
+    case Detected::kPng: return image_detail::PngInfo(data, size, what);
+    case Detected::kJpeg: return image_detail::JpegInfo(data, size, what);
+    case Detected::kExr: return image_detail::ExrInfo(data, size, what);
     case Detected::kUnknown: break;
   }
-  return MakeError(StatusCode::kBadMagic, path, ": not a PNG, JPEG or EXR image (unknown signature)");
+  return MakeError(StatusCode::kBadMagic, what, ": not a PNG, JPEG or EXR image (unknown signature)");
 }
 
 StatusOr<std::vector<uint8_t>> EncodeImage(const Image& image, ImageFormat format, const ImageEncodeOptions& options) {

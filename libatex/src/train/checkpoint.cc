@@ -97,7 +97,27 @@ StatusOr<Checkpoint> ReadCheckpoint(const std::string& dir) {
   if (cp.trainer.is_discarded() || !cp.trainer.is_object()) {
     return MakeError(StatusCode::kCorrupt, (root / "trainer.json").string(), ": not a JSON object");
   }
-  if (cp.trainer.contains("adam_steps")) cp.state.adam_steps = cp.trainer["adam_steps"];
+  // The fields the trainer reads back must have their types (json::value() throws otherwise).
+  const std::string trainer_path = (root / "trainer.json").string();
+  const auto& t = cp.trainer;
+  if ((t.contains("phase") && !t["phase"].is_string()) || (t.contains("step") && !t["step"].is_number_integer()) ||
+      (t.contains("total_steps") && !t["total_steps"].is_number_integer()) ||
+      (t.contains("lr_scale") && !t["lr_scale"].is_number())) {
+    return MakeError(StatusCode::kCorrupt, trainer_path, ": phase, step, total_steps or lr_scale has the wrong type");
+  }
+  if (t.contains("adam_steps")) {
+    const auto& steps = t["adam_steps"];
+    if (!steps.is_array() || steps.size() != cp.state.adam_steps.size()) {
+      return MakeError(StatusCode::kCorrupt, trainer_path, ": adam_steps is not an array of ",
+                       cp.state.adam_steps.size(), " integers");
+    }
+    for (size_t k = 0; k < steps.size(); ++k) {
+      if (!steps[k].is_number_integer()) {
+        return MakeError(StatusCode::kCorrupt, trainer_path, ": adam_steps[", k, "] is not an integer");
+      }
+      cp.state.adam_steps[k] = steps[k].get<int64_t>();
+    }
+  }
 
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, ReadFileBytes((root / "optimizer.bin").string()));
   if (bytes.size() < 8 || std::memcmp(bytes.data(), kMagic, 8) != 0) {
