@@ -3,7 +3,7 @@
 
     python3 bench/run_matrix.py CONFIG.json [--atex PATH] [--out DIR] [--dry-run] [--list]
                                 [--only REGEX] [--time-limit S] [--stage1-time-limit S] [--stage2-time-limit S]
-                                [--deadline S] [--retry-failed]
+                                [--deadline S] [--retry-failed] [--skip-fps]
 
 Python 3 standard library only (the GPU machine has no matplotlib); run it from the
 repository root (relative dataset paths are resolved against the working directory).
@@ -517,7 +517,7 @@ class Matrix:
         fps_cfg = self.cfg["fps"]
         dataset = self.cfg["datasets"][cell["dataset"]]
         fps = {}
-        for size in fps_cfg["sizes"]:
+        for size in ([] if self.args.skip_fps else fps_cfg["sizes"]):
             argv = ["fps", model, "--data", expand_env(dataset["path"])] + dataset["fps_args"] + \
                    ["--view", fps_cfg["view"], "--repeats", str(fps_cfg["repeats"]), "--backend", self.cfg["backend"],
                     "--json"]
@@ -702,6 +702,8 @@ def main(argv=None):
                    help="stop after S seconds of wall time: the running command is killed, its cell gets no row, "
                         "and the exit status is 3 (rerun to continue; training resumes from its checkpoint)")
     p.add_argument("--retry-failed", action="store_true", help="run cells whose row is a failure again")
+    p.add_argument("--skip-fps", action="store_true",
+                   help="no `atex fps` (rows get no FPS columns), e.g. while another job shares the GPU")
     args = p.parse_args(argv)
     try:
         cfg = load_config(args.config)

@@ -16,14 +16,14 @@ Status LoadAssetIntoBackend(const std::string& path, train::Backend* backend, As
   return Status::Ok();
 }
 
-StatusOr<std::unique_ptr<Dataset>> OpenDatasetArgs(const std::string& path, const std::string& kind, int timesteps,
-                                                   int downscale, int timestep_stride, int train_cameras) {
+StatusOr<std::unique_ptr<Dataset>> OpenDatasetArgs(const std::string& path, const DatasetArgs& args) {
   DatasetOptions options;
-  ATEX_ASSIGN_OR_RETURN(options.kind, ParseDatasetKind(kind));
-  options.max_timesteps = timesteps;
-  options.downscale = downscale;
-  options.timestep_stride = timestep_stride;
-  options.train_cameras = train_cameras;
+  ATEX_ASSIGN_OR_RETURN(options.kind, ParseDatasetKind(args.kind));
+  options.max_timesteps = args.timesteps;
+  options.downscale = args.downscale;
+  options.timestep_stride = args.timestep_stride;
+  options.train_cameras = args.train_cameras;
+  options.test_cameras = args.test_cameras;
   return OpenDataset(path, options);
 }
 

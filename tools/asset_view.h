@@ -4,6 +4,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "atex/dataset.h"
 #include "atex/model.h"
@@ -12,15 +13,21 @@
 
 namespace atex::cli {
 
+// The dataset options of the commands that open --data (atex/dataset.h DatasetOptions);
+// cli::AddDatasetOptions registers them.
+struct DatasetArgs {
+  std::string kind = "auto";
+  int timesteps = 0, downscale = 1, timestep_stride = 1, train_cameras = 0;
+  std::vector<int> test_cameras;  // empty: the dataset's own split
+};
+
 // Reads the asset and loads it into the backend; fills a render request that uses
 // everything the asset has (deformation, textures, full SH, its background).
 Status LoadAssetIntoBackend(const std::string& path, train::Backend* backend, Asset* asset,
                             train::RenderRequest* request);
 
-// Opens --data with the common dataset options of the commands (--dataset-kind,
-// --timesteps, --downscale, --timestep-stride, --train-cameras).
-StatusOr<std::unique_ptr<Dataset>> OpenDatasetArgs(const std::string& path, const std::string& kind, int timesteps,
-                                                   int downscale, int timestep_stride = 1, int train_cameras = 0);
+// Opens --data with the dataset options of the commands (cli::AddDatasetOptions).
+StatusOr<std::unique_ptr<Dataset>> OpenDatasetArgs(const std::string& path, const DatasetArgs& args);
 
 // "test:3" / "train:12": the index-th view of that split (errors name the spec).
 StatusOr<View> PickView(const Dataset& data, const std::string& spec);

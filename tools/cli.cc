@@ -68,17 +68,19 @@ void Progress::Finish(const std::string& detail) {
   if (tty_) std::cerr << "\n";
 }
 
-void AddDatasetOptions(CLI::App& app, std::string* kind, int* timesteps, int* downscale, int* timestep_stride,
-                       int* train_cameras) {
-  app.add_option("--dataset-kind", *kind, "auto, panoptic, dnerf, dnerf-npz, n3dv")->capture_default_str();
-  app.add_option("--timesteps", *timesteps, "Use only the first N timesteps (0 = all present)");
-  app.add_option("--downscale", *downscale, "Integer image downscale factor")->capture_default_str();
-  app.add_option("--timestep-stride", *timestep_stride,
+void AddDatasetOptions(CLI::App& app, DatasetArgs* args) {
+  app.add_option("--dataset-kind", args->kind, "auto, panoptic, dnerf, dnerf-npz, n3dv")->capture_default_str();
+  app.add_option("--timesteps", args->timesteps, "Use only the first N timesteps (0 = all present)");
+  app.add_option("--downscale", args->downscale, "Integer image downscale factor")->capture_default_str();
+  app.add_option("--timestep-stride", args->timestep_stride,
                  "Keep every K-th timestep (both splits; times unchanged): K times faster motion")
       ->capture_default_str();
-  app.add_option("--train-cameras", *train_cameras,
+  app.add_option("--train-cameras", args->train_cameras,
                  "Use N evenly spaced training cameras (sorted ids, ids[i*M/N]; 0 = all)")
       ->capture_default_str();
+  app.add_option("--test-cameras", args->test_cameras,
+                 "Hold out these camera ids for testing instead of the dataset's split (Panoptic, N3DV)")
+      ->delimiter(',');
 }
 
 }  // namespace atex::cli

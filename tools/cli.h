@@ -5,12 +5,14 @@
 #include <chrono>
 #include <functional>
 #include <string>
+#include <vector>
 #include <string_view>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include "atex/status.h"
+#include "asset_view.h"
 
 namespace atex::cli {
 
@@ -39,10 +41,8 @@ int Fail(std::string_view command, const Status& status);
 // Writes JSON (indented) to stdout followed by a newline.
 void PrintJson(const nlohmann::json& json);
 
-// The dataset options shared by the commands that open --data: --dataset-kind,
-// --timesteps, --downscale, --timestep-stride, --train-cameras.
-void AddDatasetOptions(CLI::App& app, std::string* kind, int* timesteps, int* downscale, int* timestep_stride,
-                       int* train_cameras);
+// Registers --dataset-kind, --timesteps, --downscale, --timestep-stride, --train-cameras, --test-cameras.
+void AddDatasetOptions(CLI::App& app, DatasetArgs* args);
 
 // A single-line progress display on stderr (redrawn in place on a terminal,
 // one line per ~2 s otherwise so that logs stay short).

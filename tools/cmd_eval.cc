@@ -11,15 +11,16 @@
 namespace {
 
 struct EvalArgs {
-  std::string asset, data, backend = "auto", kind = "auto", split = "test";
-  int timesteps = 0, downscale = 1, timestep_stride = 1, train_cameras = 0;
+  std::string asset, data, backend = "auto", split = "test";
+  atex::cli::DatasetArgs dataset;
+  float near_plane = atex::kDefaultNearPlane;
   bool json = false;
 };
 
 int RunEval(const EvalArgs& a) {
   using namespace atex;
   const char* cmd = "eval";
-  auto dataset = cli::OpenDatasetArgs(a.data, a.kind, a.timesteps, a.downscale, a.timestep_stride, a.train_cameras);
+  auto dataset = cli::OpenDatasetArgs(a.data, a.dataset);
   if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
   auto backend = cli::SelectBackend(a.backend);
   if (!backend.ok()) return cli::Fail(cmd, backend.status());
@@ -33,6 +34,7 @@ int RunEval(const EvalArgs& a) {
     std::cerr << "atex eval: --split must be test or train\n";
     return cli::kExitUsage;
   }
+  request.near_plane = a.near_plane;
   const auto& views = a.split == "test" ? (*dataset)->test_views() : (*dataset)->train_views();
   auto eval = train::Evaluate(**dataset, *backend->backend, views, request);
   if (!eval.ok()) return cli::Fail(cmd, eval.status());
@@ -61,7 +63,10 @@ atex::cli::Runner SetupEval(CLI::App& app) {
   app.add_option("--data", a->data, "Dataset folder or .npz")->required();
   app.add_option("--split", a->split, "test or train")->capture_default_str();
   app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
-  atex::cli::AddDatasetOptions(app, &a->kind, &a->timesteps, &a->downscale, &a->timestep_stride, &a->train_cameras);
+  atex::cli::AddDatasetOptions(app, &a->dataset);
+  app.add_option("--near-plane", a->near_plane, "Cull Gaussians at camera z <= this (scene units; training's default)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   app.add_flag("--json", a->json, "Machine-readable output");
   return [a]() { return RunEval(*a); };
 }

@@ -38,7 +38,7 @@ atex::Camera Reframe(const atex::Camera& c, int width, int height) {
 int RunFps(const FpsArgs& a) {
   using namespace atex;
   const char* cmd = "fps";
-  auto dataset = cli::OpenDatasetArgs(a.data, a.kind, a.timesteps, 1);
+  auto dataset = cli::OpenDatasetArgs(a.data, {.kind = a.kind, .timesteps = a.timesteps, .downscale = 1});
   if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
   // A malformed --view is an error with the spec, never an exception.
   auto view = cli::PickView(**dataset, a.view);

@@ -25,7 +25,7 @@ int RunRender(const RenderArgs& a) {
   View view;
   std::unique_ptr<Dataset> dataset;
   if (!a.data.empty()) {
-    auto opened = cli::OpenDatasetArgs(a.data, a.kind, a.timesteps, a.downscale);
+    auto opened = cli::OpenDatasetArgs(a.data, {.kind = a.kind, .timesteps = a.timesteps, .downscale = a.downscale});
     if (!opened.ok()) return cli::Fail(cmd, opened.status());
     dataset = std::move(*opened);
     auto picked = cli::PickView(*dataset, a.view);

@@ -15,9 +15,10 @@ namespace {
 
 struct TrainArgs {
   std::string data, out, config_file, stage = "all", textures, backend = "auto", init, checkpoint_dir, resume,
-      metrics, kind = "auto";
+      metrics;
+  atex::cli::DatasetArgs dataset;
   std::vector<std::string> overrides;
-  int timesteps = 0, downscale = 1, checkpoint_every = -1, timestep_stride = 1, train_cameras = 0;
+  int checkpoint_every = -1;
   long long seed = -1;
   bool json = false, print_config = false, fp32 = false, profile = false;
   double time_limit = 0;
@@ -25,7 +26,7 @@ struct TrainArgs {
 
 atex::StatusOr<atex::train::TrainConfig> BuildConfig(const TrainArgs& a, const atex::Dataset* data) {
   using namespace atex;
-  std::string kind = a.kind == "dnerf-npz" ? "dnerf" : a.kind;  // --print-config without a dataset
+  std::string kind = a.dataset.kind == "dnerf-npz" ? "dnerf" : a.dataset.kind;  // --print-config without a dataset
   if (data) {
     switch (data->kind()) {
       case DatasetKind::kPanoptic: kind = "panoptic"; break;
@@ -67,7 +68,7 @@ int RunTrain(const TrainArgs& a) {
     std::cerr << "atex train: --data and --out are required (see --help)\n";
     return cli::kExitUsage;
   }
-  auto dataset = cli::OpenDatasetArgs(a.data, a.kind, a.timesteps, a.downscale, a.timestep_stride, a.train_cameras);
+  auto dataset = cli::OpenDatasetArgs(a.data, a.dataset);
   if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
   for (const auto& w : (*dataset)->warnings()) std::cerr << "atex train: note: " << w << "\n";
   auto config = BuildConfig(a, dataset->get());
@@ -165,7 +166,7 @@ atex::cli::Runner SetupTrain(CLI::App& app) {
   app.add_option("--checkpoint-every", a->checkpoint_every, "Steps between checkpoints (overrides the config)");
   app.add_option("--resume", a->resume, "Continue from a checkpoint folder");
   app.add_option("--metrics", a->metrics, "Write a metrics CSV (one row per logged step)");
-  atex::cli::AddDatasetOptions(app, &a->kind, &a->timesteps, &a->downscale, &a->timestep_stride, &a->train_cameras);
+  atex::cli::AddDatasetOptions(app, &a->dataset);
   app.add_option("--seed", a->seed, "Random seed (default: the config's, 6666)");
   app.add_flag("--print-config", a->print_config, "Print the default config as JSON and exit");
   app.add_flag("--fp32", a->fp32, "CUDA: full FP32 for the deformation MLP (default: TF32 tensor cores)");

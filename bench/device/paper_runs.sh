@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # The GPU experiments of BENCHMARKS.md, one phase per call (a lent GPU machine allows
 # 10 minutes per command; the build folder and out/ persist between phases).
-#   bench/device/paper_runs.sh build|lego|stage1|stage2|fit  OUT_DIR
+#   bench/device/paper_runs.sh build|lego|stage1|stage2|fit|matrix|build+matrix|budget+lego  OUT_DIR
+# The matrix phases run bench/run_matrix.py with --out out/panoptic and a deadline that fits
+# one call; rerun the same phase to continue (MATRIX_CONFIG picks the config, default
+# bench/configs/panoptic_session.json; budget+lego runs bench/configs/panoptic_budget.json
+# on the same models without FPS while the lego sample trains beside it).
 # Data: .devdata/panoptic_basketball (CMU Panoptic, 30 timesteps) and
 # .devdata/dnerf_lego_tiny/tiny_dnerf_data.npz (copies of ../shared/data).
 set -euo pipefail
@@ -17,8 +21,9 @@ log() { echo "== $(date +%T) $*" >&2; }
 case $phase in
   build)
     cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES=90 >/dev/null
-    cmake --build "$BUILD" -j "$(nproc)" --target atex_cli 2>&1 | tail -3
+    cmake --build "$BUILD" -j "$(nproc)" --target atex_cli backend_parity_test 2>&1 | tail -3
     nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader | tee "$out/gpu.txt"
+    ctest --test-dir "$BUILD" -R backend_parity_test --output-on-failure 2>&1 | tail -4
     ;;
   lego)
     # The embedded sample: a small deformation field (C 16, 32^3 x 13) so the asset is a few MB.
@@ -65,6 +70,34 @@ case $phase in
           --data "$bb" --eval-views 0 --json > "$out/fit_$m.count$f.json" 2>> "$out/fit_$m.count.log" || echo "count $m $f failed" >&2
       done
     done
+    ;;
+  build+matrix)
+    start=$(date +%s)
+    "$0" build "$out"
+    DEADLINE=$(( ${CALL_SECONDS:-570} - ($(date +%s) - start) )) "$0" matrix "$out"
+    ;;
+  matrix)
+    rc=0
+    python3 bench/run_matrix.py "${MATRIX_CONFIG:-bench/configs/panoptic_session.json}" --atex "$atex" \
+      --out out/panoptic --deadline "${DEADLINE:-540}" ${MATRIX_ARGS:-} > "$out/matrix.log" 2>&1 || rc=$?
+    echo "run_matrix exit $rc" | tee -a "$out/matrix.log"
+    s1=out/panoptic/models/basketball/full/s6666/stage1.atex
+    if [ -f "$s1" ] && [ ! -f out/panoptic/stage1_near0.01.eval.json ]; then
+      # What the 0.2 near plane does: the same model with 3DGS's cull moved to 1 cm.
+      "$atex" eval "$s1" --data "$bb" --near-plane 0.01 --json > out/panoptic/stage1_near0.01.eval.json 2>/dev/null || true
+      for v in test:0 test:45; do
+        "$atex" render "$s1" --data "$bb" --view $v --out "out/panoptic/stage1_${v/:/}.png" \
+          --ground-truth "out/panoptic/gt_${v/:/}.png" >/dev/null 2>&1 || true
+      done
+    fi
+    tar czf "$out/panoptic_results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic 2>/dev/null || true
+    ;;
+  budget+lego)
+    LEGO_TIME=${LEGO_TIME:-330} "$0" lego "$out" > "$out/lego_phase.log" 2>&1 &
+    lego_pid=$!
+    MATRIX_CONFIG=bench/configs/panoptic_budget.json MATRIX_ARGS="--skip-fps ${MATRIX_ARGS:-}" "$0" matrix "$out" || true
+    wait $lego_pid || echo "lego phase failed" >&2
+    tar czf "$out/lego.tgz" -C "$out" $(cd "$out" && ls lego* 2>/dev/null) 2>/dev/null || true
     ;;
   *) echo "unknown phase $phase" >&2; exit 2 ;;
 esac

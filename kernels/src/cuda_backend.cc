@@ -212,6 +212,12 @@ class CudaBackend final : public Backend {
     result.view_psnr.resize(views.size());
 
     ATEX_RETURN_IF_ERROR(Mark("setup"));
+    // The batch's cached targets become the most recent first, so that uploading the others
+    // cannot evict one that the caller sent without its image (HasTarget).
+    for (const train::TrainView& view : views) {
+      auto it = targets_.find(view.image_key);
+      if (it != targets_.end()) lru_.splice(lru_.begin(), lru_, it->second.second);
+    }
     for (size_t k = 0; k < views.size(); ++k) {
       const Camera& camera = *views[k].camera;
       ATEX_ASSIGN_OR_RETURN(const float* target, Target(views[k]));
@@ -709,12 +715,18 @@ class CudaBackend final : public Backend {
     return offsets_.Upload(offsets, stream_);
   }
 
+  bool HasTarget(uint64_t image_key) const override { return targets_.count(image_key) != 0; }
+
   // Target images stay on the device (LRU, bounded), keyed by the view's image key.
   StatusOr<const float*> Target(const train::TrainView& view) {
     auto it = targets_.find(view.image_key);
     if (it != targets_.end()) {
       lru_.splice(lru_.begin(), lru_, it->second.second);
       return static_cast<const float*>(it->second.first.data());
+    }
+    if (view.target == nullptr) {
+      return MakeError(StatusCode::kInternal, "CUDA backend: view ", view.camera->name,
+                       " came without its image, but its device copy is gone");
     }
     const Image& image = *view.target;
     if (image.channels != 3 || image.width != view.camera->width || image.height != view.camera->height) {

@@ -38,9 +38,15 @@ namespace atex {
 // ---------------------------------------------------------------------------
 // Settings and results
 
+// The default near plane, in scene units: the 3DGS rasterizer (and 4DGaussians, whose
+// numbers the paper compares with) culls Gaussians at camera z <= 0.2. Without it a
+// held-out camera sees, at a few centimetres, the Gaussians that model its own housing
+// for the other cameras (Panoptic's dome): opaque blobs that fill its view.
+inline constexpr float kDefaultNearPlane = 0.2f;
+
 struct RenderSettings {
   std::array<float, 3> background{0, 0, 0};  // b, RGB
-  float near_plane = 0.01f;                  // Gaussians with camera z <= near are invisible
+  float near_plane = kDefaultNearPlane;      // Gaussians with camera z <= near are invisible
   int active_sh_degree = 3;                  // 0..3; min(active_sh_degree, gaussians.sh_degree) is evaluated
 };
 

@@ -194,17 +194,55 @@ std::array<float, 3> MeanColour(const std::vector<CameraImages>& cams, const dou
   return {0.5f, 0.5f, 0.5f};
 }
 
+// Colours a point projects to, outside the masks where `want_mask` is 0 (as
+// MeanColour, without fallbacks): their mean, their RMS distance to the mean
+// (0 for a point on a Lambertian surface seen without occlusion; large for a
+// point in empty space, whose cameras see different things) and their number.
+struct ColourSample {
+  std::array<float, 3> mean{0.5f, 0.5f, 0.5f};
+  double spread = 0;
+  int count = 0;
+};
+
+ColourSample SampleColours(const std::vector<CameraImages>& cams, const double x[3], int want_mask) {
+  double sum[3] = {0, 0, 0}, sum_sq = 0;
+  int count = 0;
+  for (const CameraImages& c : cams) {
+    int px, py;
+    if (!Project(c.view->camera, x, &px, &py)) continue;
+    if (want_mask >= 0 && c.mask && (c.mask->at(px, py, 0) > 0.5f) != (want_mask == 1)) continue;
+    for (int ch = 0; ch < 3; ++ch) {
+      const double value = c.image->at(px, py, ch);
+      sum[ch] += value;
+      sum_sq += value * value;
+    }
+    ++count;
+  }
+  ColourSample out;
+  out.count = count;
+  if (count == 0) return out;
+  double mean_sq = 0;
+  for (int ch = 0; ch < 3; ++ch) {
+    out.mean[ch] = static_cast<float>(sum[ch] / count);
+    mean_sq += (sum[ch] / count) * (sum[ch] / count);
+  }
+  out.spread = std::sqrt(std::max(0.0, (sum_sq / count - mean_sq) / 3.0));
+  return out;
+}
+
 Status ValidateInitOptions(const InitOptions& o) {
   if (o.sh_degree < 0 || o.sh_degree > kMaxShDegree) {
     return MakeError(StatusCode::kInvalidArgument, "init: sh_degree ", o.sh_degree, " (0..3)");
   }
   if (o.min_views < 1 || o.hull_resolution < 4 || o.hull_resolution > 1024 || !(o.hull_keep_fraction > 0) ||
       o.hull_keep_fraction > 1 || o.hull_points < 0 || o.volume_points < 0 || o.cube_points < 0 ||
+      o.volume_attempts_per_point < 1 || !(o.volume_far > 0.1) || !(o.volume_max_colour_spread >= 0) ||
       !(o.cube_half_extent > 0) || !(o.initial_opacity > 0 && o.initial_opacity < 1) || o.knn_neighbors < 1 ||
       o.knn_neighbors > 16) {
     return MakeError(StatusCode::kInvalidArgument,
                      "init: options out of range (min_views >= 1, hull_resolution 4..1024, hull_keep_fraction (0, 1], "
-                     "point counts >= 0, cube_half_extent > 0, initial_opacity (0, 1), knn_neighbors 1..16)");
+                     "point counts >= 0, volume_attempts_per_point >= 1, volume_far > 0.1, "
+                     "volume_max_colour_spread >= 0, cube_half_extent > 0, initial_opacity (0, 1), knn_neighbors 1..16)");
   }
   return Status::Ok();
 }
@@ -340,30 +378,49 @@ StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOption
     if (use_volume) {
       const auto bounds = dataset.depth_bounds();
       const double near = bounds[1] > 0 ? bounds[0] : 0.1 * scene.distance;
-      const double far = bounds[1] > 0 ? bounds[1] : 2.5 * scene.distance;
-      const long long max_attempts = (long long)kAttemptsPerPoint * options.volume_points;
-      for (long long attempt = 0; attempt < max_attempts && rep.volume_points < size_t(options.volume_points);
-           ++attempt) {
-        const Camera& cam = cams[rng.Index(cams.size())].view->camera;
-        const double u = rng.Uniform(0, cam.width), v = rng.Uniform(0, cam.height);
-        const double depth = 1.0 / rng.Uniform(1.0 / far, 1.0 / near);  // uniform in disparity
-        // Camera-space point at z = depth, then to world: x = Wᵀ(p − T).
-        const double pc[3] = {(u - cam.cx) / cam.fx * depth, (v - cam.cy) / cam.fy * depth, depth};
-        const auto& m = cam.world_to_camera;
-        double x[3];
-        for (int a = 0; a < 3; ++a) {
-          x[a] = m[0 + a] * (pc[0] - m[3]) + m[4 + a] * (pc[1] - m[7]) + m[8 + a] * (pc[2] - m[11]);
+      const double far = bounds[1] > 0 ? bounds[1] : options.volume_far * scene.distance;
+      // Candidates are drawn serially (deterministic) and judged in parallel, batch by batch.
+      constexpr size_t kBatch = 16384;
+      const long long max_attempts = (long long)options.volume_attempts_per_point * options.volume_points;
+      std::vector<std::array<double, 3>> candidates;
+      std::vector<ColourSample> samples;
+      long long drawn = 0;
+      while (drawn < max_attempts && rep.volume_points < size_t(options.volume_points)) {
+        const size_t batch = static_cast<size_t>(std::min<long long>(kBatch, max_attempts - drawn));
+        candidates.resize(batch);
+        for (auto& x : candidates) {
+          const Camera& cam = cams[rng.Index(cams.size())].view->camera;
+          const double u = rng.Uniform(0, cam.width), v = rng.Uniform(0, cam.height);
+          const double depth = options.volume_uniform_depth ? rng.Uniform(near, far)
+                                                            : 1.0 / rng.Uniform(1.0 / far, 1.0 / near);
+          // Camera-space point at z = depth, then to world: x = Wᵀ(p − T).
+          const double pc[3] = {(u - cam.cx) / cam.fx * depth, (v - cam.cy) / cam.fy * depth, depth};
+          const auto& m = cam.world_to_camera;
+          for (int a = 0; a < 3; ++a) {
+            x[a] = m[0 + a] * (pc[0] - m[3]) + m[4 + a] * (pc[1] - m[7]) + m[8 + a] * (pc[2] - m[11]);
+          }
         }
-        const HullVotes votes = Vote(cams, x);
-        if (votes.seen < options.min_views) continue;
-        if (masked >= options.min_views && InsideHull(votes, options)) continue;  // foreground: the hull's job
-        const std::array<float, 3> colour = MeanColour(cams, x, masked > 0 ? 0 : -1);
-        for (int a = 0; a < 3; ++a) {
-          positions.push_back(static_cast<float>(x[a]));
-          colours.push_back(colour[a]);
+        drawn += static_cast<long long>(batch);
+        samples.assign(batch, ColourSample{});
+#pragma omp parallel for schedule(dynamic, 256)
+        for (long long i = 0; i < static_cast<long long>(batch); ++i) {
+          const HullVotes votes = Vote(cams, candidates[i].data());
+          if (votes.seen < options.min_views) continue;
+          if (masked >= options.min_views && InsideHull(votes, options)) continue;  // foreground: the hull's job
+          samples[i] = SampleColours(cams, candidates[i].data(), masked > 0 ? 0 : -1);
         }
-        ++rep.volume_points;
+        for (size_t i = 0; i < batch && rep.volume_points < size_t(options.volume_points); ++i) {
+          const ColourSample& c = samples[i];
+          if (c.count < options.min_views) continue;
+          if (options.volume_max_colour_spread > 0 && c.spread > options.volume_max_colour_spread) continue;
+          for (int a = 0; a < 3; ++a) {
+            positions.push_back(static_cast<float>(candidates[i][a]));
+            colours.push_back(c.mean[a]);
+          }
+          ++rep.volume_points;
+        }
       }
+      rep.volume_candidates = static_cast<size_t>(drawn);
     }
   }
 

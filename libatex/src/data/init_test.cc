@@ -186,6 +186,39 @@ TEST(Init, HullPlusVolumeIsDeterministicPerSeed) {
   EXPECT_NE(a->positions, c->positions);
 }
 
+// Photo-consistency: without masks, a point whose cameras see both the red sphere
+// and the blue background is rejected; red points then lie inside the sphere's
+// visual hull, while without the test they also float along single lines of sight.
+TEST(Init, ViewVolumePhotoConsistency) {
+  auto scene = SphereScene(32, false);
+  ASSERT_TRUE(scene.ok());
+  auto farthest_red = [&](double spread, size_t* red_count) {
+    InitOptions options;
+    options.volume_points = 1500;
+    options.volume_max_colour_spread = spread;
+    InitReport report;
+    auto g = InitializeGaussians(**scene, options, &report);
+    EXPECT_TRUE(g.ok()) << g.status().ToString();
+    EXPECT_EQ(report.volume_points, 1500u);
+    EXPECT_GE(report.volume_candidates, report.volume_points);
+    double farthest = 0;
+    *red_count = 0;
+    for (size_t i = 0; g.ok() && i < g->size(); ++i) {
+      const std::array<float, 3> c = Colour(*g, i);
+      if (c[0] < 0.5f) continue;  // not red: background or a mixture
+      ++*red_count;
+      const float* x = &g->positions[i * 3];
+      farthest = std::max(farthest, std::sqrt(double(x[0]) * x[0] + double(x[1]) * x[1] + double(x[2]) * x[2]));
+    }
+    return farthest;
+  };
+  size_t red_filtered = 0, red_unfiltered = 0;
+  EXPECT_LT(farthest_red(0.03, &red_filtered), kRadius * 1.3);
+  EXPECT_GT(red_filtered, 10u);
+  EXPECT_GT(farthest_red(0, &red_unfiltered), kRadius * 1.6);
+  EXPECT_GT(red_unfiltered, 10u);
+}
+
 TEST(Init, ViewVolumeWithoutMasks) {
   auto scene = SphereScene(32, false);
   ASSERT_TRUE(scene.ok());

@@ -47,9 +47,12 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(DensifyConfig, enabled, from_ste
                                                 opacity_reset_in_fine, max_screen_radius, max_world_scale_fraction,
                                                 max_gaussians)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RegularizerConfig, plane_tv, time_smoothness, time_l1)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(InitVolumeConfig, far, uniform_depth, max_colour_spread,
+                                                attempts_per_point)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Stage1Config, coarse_iterations, fine_iterations, batch_size,
                                                 lambda_dssim, sh_degree, sh_increase_interval, lr, densify,
-                                                regularizer, deformation, init_method, init_points)
+                                                regularizer, deformation, init_method, init_points,
+                                                init_hull_fraction, init_volume)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(GrowthAblations, temporal_peak, anisotropic,
                                                 visibility_normalization)
 
@@ -85,7 +88,7 @@ static void from_json(const nlohmann::json& j, Stage2Config& c) {
 }
 
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(TrainConfig, seed, stage1, stage2, background, near_plane, eval_every,
-                                                checkpoint_every)
+                                                eval_views, checkpoint_every)
 
 double ExpDecay::At(int step) const {
   if (step < 0 || (initial == 0.0 && final == 0.0)) return 0.0;

@@ -49,12 +49,30 @@ Asset AssetFromState(const ModelState& state, const Metadata& metadata) {
 StatusOr<EvalResult> Evaluate(const Dataset& dataset, Backend& backend, const std::vector<View>& views,
                               const RenderRequest& request) {
   EvalResult result;
-  for (const View& view : views) {
-    ATEX_ASSIGN_OR_RETURN(Image rendered, backend.Render(view.camera, request));
-    for (float& v : rendered.pixels) v = std::clamp(v, 0.0f, 1.0f);
-    ATEX_ASSIGN_OR_RETURN(auto target, dataset.LoadImage(view));
-    ATEX_ASSIGN_OR_RETURN(ImageMetrics m, CompareImages(rendered, *target));
-    result.views.push_back({view.camera_id, view.timestep, m});
+  result.views.resize(views.size());
+  // Renders come from the backend one by one; the CPU metrics (SSIM dominates) of a chunk run in parallel.
+  constexpr size_t kChunk = 32;
+  for (size_t begin = 0; begin < views.size(); begin += kChunk) {
+    const size_t end = std::min(views.size(), begin + kChunk);
+    std::vector<Image> rendered(end - begin);
+    std::vector<std::shared_ptr<const Image>> targets(end - begin);
+    for (size_t i = begin; i < end; ++i) {
+      ATEX_ASSIGN_OR_RETURN(rendered[i - begin], backend.Render(views[i].camera, request));
+      ATEX_ASSIGN_OR_RETURN(targets[i - begin], dataset.LoadImage(views[i]));
+    }
+    std::vector<Status> errors(end - begin);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (long long k = 0; k < static_cast<long long>(end - begin); ++k) {
+      for (float& v : rendered[k].pixels) v = std::clamp(v, 0.0f, 1.0f);
+      StatusOr<ImageMetrics> m = CompareImages(rendered[k], *targets[k]);
+      if (!m.ok()) {
+        errors[k] = m.status();
+        continue;
+      }
+      const View& view = views[begin + k];
+      result.views[begin + k] = {view.camera_id, view.timestep, *m};
+    }
+    for (const Status& e : errors) ATEX_RETURN_IF_ERROR(e);
   }
   const double n = static_cast<double>(std::max<size_t>(1, result.views.size()));
   for (const auto& v : result.views) {
@@ -124,6 +142,7 @@ class Loop {
     }
 
     const std::vector<Phase> phases = PhasesToRun(start_phase);
+    PreloadTrainingImages();
     run_start_ = Clock::now();
     for (Phase phase : phases) {
       if (summary_.stopped_by_time_limit) break;
@@ -158,20 +177,55 @@ class Loop {
     return it == phases.end() ? std::vector<Phase>{} : std::vector<Phase>(it, phases.end());
   }
 
+  // The test views of the evaluations during training: config.eval_views of them, evenly spaced.
+  const std::vector<View>& ProgressEvalViews() {
+    const std::vector<View>& all = data_.test_views();
+    const size_t wanted = config_.eval_views > 0 ? static_cast<size_t>(config_.eval_views) : all.size();
+    if (wanted >= all.size()) return all;
+    if (progress_eval_views_.empty()) {
+      for (size_t i = 0; i < wanted; ++i) progress_eval_views_.push_back(all[i * all.size() / wanted]);
+    }
+    return progress_eval_views_;
+  }
+
+  // Decodes the training images in parallel before the first step when they all fit in the
+  // dataset's cache (else they load lazily, as the steps need them). Errors surface at the step.
+  void PreloadTrainingImages() {
+    const std::vector<View>& train = data_.train_views();
+    const long long n = static_cast<long long>(train.size());
+    const uint64_t pixels = n > 0 ? uint64_t(train[0].camera.width) * train[0].camera.height : 0;
+    if (n == 0 || pixels * 3 * sizeof(float) * uint64_t(n) > data_.cache_limit()) return;
+#pragma omp parallel for schedule(dynamic, 1)
+    for (long long i = 0; i < n; ++i) (void)data_.LoadImage(train[i]);
+  }
+
   Status InitializeStage1() {
     const Stage1Config& s1 = config_.stage1;
     InitOptions init;
     ATEX_ASSIGN_OR_RETURN(init.method, ParseInitMethod(s1.init_method));
     init.seed = config_.seed;
     init.sh_degree = s1.sh_degree;
+    if (!(s1.init_hull_fraction >= 0 && s1.init_hull_fraction <= 1)) {
+      return MakeError(StatusCode::kInvalidArgument, "stage1.init_hull_fraction ", s1.init_hull_fraction,
+                       " is outside [0, 1]");
+    }
     if (s1.init_points > 0) {
       init.cube_points = static_cast<int>(s1.init_points);
-      init.hull_points = static_cast<int>(s1.init_points * 2 / 3);
-      init.volume_points = static_cast<int>(s1.init_points / 3);
+      init.hull_points = static_cast<int>(std::lround(double(s1.init_points) * s1.init_hull_fraction));
+      init.volume_points = static_cast<int>(s1.init_points) - init.hull_points;
     }
+    init.volume_far = s1.init_volume.far;
+    init.volume_uniform_depth = s1.init_volume.uniform_depth;
+    init.volume_max_colour_spread = s1.init_volume.max_colour_spread;
+    init.volume_attempts_per_point = s1.init_volume.attempts_per_point;
     InitReport report;
     ATEX_ASSIGN_OR_RETURN(Gaussians gaussians, InitializeGaussians(data_, init, &report));
-    Event(StrCat("initialised ", gaussians.size(), " Gaussians (", InitMethodName(report.method), ")"));
+    std::string detail = InitMethodName(report.method);
+    if (report.method == InitMethod::kHullAndViewVolume || report.method == InitMethod::kViewVolume) {
+      detail = StrCat(detail, ": ", report.hull_points, " hull, ", report.volume_points, " volume of ",
+                      report.volume_candidates, " candidates");
+    }
+    Event(StrCat("initialised ", gaussians.size(), " Gaussians (", detail, ")"));
 
     // The deformation field's AABB is the initial cloud's (4DGaussians), time spans [-1, 1].
     DeformationConfig dc = s1.deformation;
@@ -309,9 +363,14 @@ class Loop {
       std::vector<TrainView> views;
       for (size_t index : picks) {
         const View& v = train[index];
+        const uint64_t key = static_cast<uint64_t>(index) + 1;
+        if (backend_.HasTarget(key)) {  // on the device already: no host decode
+          views.push_back({&v.camera, nullptr, key});
+          continue;
+        }
         ATEX_ASSIGN_OR_RETURN(auto image, data_.LoadImage(v));
         images.push_back(image);
-        views.push_back({&v.camera, images.back().get(), static_cast<uint64_t>(index) + 1});
+        views.push_back({&v.camera, images.back().get(), key});
       }
       ATEX_ASSIGN_OR_RETURN(StepResult result, backend_.Step(request, views));
       if (!result.finite) {
@@ -362,7 +421,7 @@ class Loop {
         return Status::Ok();
       }
       if (config_.eval_every > 0 && (step + 1) % config_.eval_every == 0 && !last && !data_.test_views().empty()) {
-        ATEX_ASSIGN_OR_RETURN(EvalResult eval, Evaluate(data_, backend_, data_.test_views(), EvalRequest(phase)));
+        ATEX_ASSIGN_OR_RETURN(EvalResult eval, Evaluate(data_, backend_, ProgressEvalViews(), EvalRequest(phase)));
         Event(StrCat(PhaseName(phase), " step ", step + 1, ": test PSNR ", eval.mean.psnr, " SSIM ", eval.mean.ssim));
       }
     }
@@ -524,6 +583,7 @@ class Loop {
   }
 
   static constexpr int kSnapshotInterval = 200;
+  std::vector<View> progress_eval_views_;
   static constexpr int kMaxRollbacks = 5;
 
   const Dataset& data_;

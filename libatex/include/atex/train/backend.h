@@ -24,6 +24,7 @@
 #include "atex/camera.h"
 #include "atex/image.h"
 #include "atex/model.h"
+#include "atex/render.h"  // kDefaultNearPlane
 #include "atex/status.h"
 
 namespace atex::train {
@@ -66,7 +67,7 @@ struct AdamSettings {
 // One training view: its camera (with time) and target image [H][W][3].
 struct TrainView {
   const Camera* camera = nullptr;
-  const Image* target = nullptr;
+  const Image* target = nullptr;  // null only where the backend's HasTarget(image_key) said true
   uint64_t image_key = 0;  // stable id of the target image (lets a backend cache it on the device)
 };
 
@@ -84,7 +85,7 @@ struct StepRequest {
   int time_bins = 8;
   double time_min = 0, time_max = 1;  // for the temporal bins
   std::array<float, 3> background{0, 0, 0};
-  float near_plane = 0.01f;
+  float near_plane = kDefaultNearPlane;
 };
 
 struct StepResult {
@@ -137,7 +138,7 @@ struct RenderRequest {
   bool apply_deformation = true;
   bool use_textures = true;
   std::array<float, 3> background{0, 0, 0};
-  float near_plane = 0.01f;
+  float near_plane = kDefaultNearPlane;
 };
 
 class Backend {
@@ -172,6 +173,9 @@ class Backend {
 
   // Peak device memory in bytes since creation (0 if not tracked).
   virtual uint64_t PeakMemoryBytes() const { return 0; }
+  // True when the backend holds the target image of `image_key` already (a Step may then
+  // get that view with target == nullptr, sparing the caller a decode).
+  virtual bool HasTarget(uint64_t /*image_key*/) const { return false; }
   // Time spent per stage when the backend was created with profiling on
   // ({"deform_forward_ms": ..., ...}); an empty object otherwise.
   virtual nlohmann::json Profile() const { return nlohmann::json::object(); }

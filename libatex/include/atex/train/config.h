@@ -12,7 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "atex/model.h"
-#include "atex/render.h"  // TextureMode
+#include "atex/render.h"  // TextureMode, kDefaultNearPlane
 #include "atex/status.h"
 
 namespace atex::train {
@@ -67,6 +67,14 @@ struct RegularizerConfig {
   double time_l1 = 1e-4;
 };
 
+// The view-volume sampler of atex/init.h (InitOptions::volume_*).
+struct InitVolumeConfig {
+  double far = 2.5;                // in median camera distances, when the dataset has no depth bounds
+  bool uniform_depth = true;       // false: uniform in disparity
+  double max_colour_spread = 0.03; // photo-consistency threshold (0 = off)
+  int attempts_per_point = 1000;
+};
+
 struct Stage1Config {
   int coarse_iterations = 3000;
   int fine_iterations = 14000;
@@ -78,9 +86,11 @@ struct Stage1Config {
   DensifyConfig densify;
   RegularizerConfig regularizer;
   DeformationConfig deformation;  // grid/MLP shape; AABB and time mapping are set from the data
-  // Initialisation without a point cloud (data/init.h methods: "auto", "hull", "random", "hull+random").
+  // Initialisation without a point cloud (atex/init.h methods: "auto", "hull", "volume", "hull+volume", "cube").
   std::string init_method = "auto";
   size_t init_points = 100000;
+  double init_hull_fraction = 2.0 / 3.0;  // of init_points from the hull with "hull+volume" (the rest: volume)
+  InitVolumeConfig init_volume;
 };
 
 struct GrowthAblations {
@@ -110,8 +120,9 @@ struct TrainConfig {
   Stage1Config stage1;
   Stage2Config stage2;
   std::array<float, 3> background{0, 0, 0};
-  float near_plane = 0.01f;
+  float near_plane = kDefaultNearPlane;  // atex/render.h
   int eval_every = 1000;        // test-view evaluation during training (0 = only at the end)
+  int eval_views = 16;          // test views (evenly spaced) of those evaluations; 0 = all. The final one uses all.
   int checkpoint_every = 2000;  // 0 = never
 };
 
