@@ -307,7 +307,7 @@ TEST(StressRender, BehindTheCameraAndAtTheNearPlane) {
     std::mt19937 rng(3);
     std::uniform_real_distribution<float> u(-1, 1);
     for (size_t i = 0; i < g.size(); ++i) {
-      g.positions[3 * i + 2] = 0.01f + 0.005f * u(rng);  // around the near plane
+      g.positions[3 * i + 2] = settings.near_plane + 0.005f * u(rng);  // around the near plane
       for (int k = 0; k < 3; ++k) g.log_scales[3 * i + k] = std::log(0.5f);
     }
     if (auto out = RenderCase(c, BaseCamera(), g, nullptr, settings)) {

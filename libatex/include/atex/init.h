@@ -18,7 +18,10 @@
 //                 colours to their mean is at most volume_max_colour_spread
 //                 (photo-consistency, as in voxel colouring: a point on a surface
 //                 looks alike from every camera, a point in empty space does not;
-//                 occlusion is ignored). With masks, points that pass the hull rule
+//                 occlusion is ignored), and whose mean colour is not the
+//                 dataset's background colour (within the same threshold: such a
+//                 point is empty space of a scene on a plain background; these fill
+//                 up only when too few other points are found). With masks, points that pass the hull rule
 //                 are rejected (they are foreground) and colours come from pixels
 //                 outside the masks (background). Without the consistency test most
 //                 points would float in empty space, where training turns them into

@@ -384,6 +384,7 @@ StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOption
       const long long max_attempts = (long long)options.volume_attempts_per_point * options.volume_points;
       std::vector<std::array<double, 3>> candidates;
       std::vector<ColourSample> samples;
+      std::vector<std::pair<std::array<double, 3>, std::array<float, 3>>> background_like;
       long long drawn = 0;
       while (drawn < max_attempts && rep.volume_points < size_t(options.volume_points)) {
         const size_t batch = static_cast<size_t>(std::min<long long>(kBatch, max_attempts - drawn));
@@ -409,16 +410,34 @@ StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOption
           if (masked >= options.min_views && InsideHull(votes, options)) continue;  // foreground: the hull's job
           samples[i] = SampleColours(cams, candidates[i].data(), masked > 0 ? 0 : -1);
         }
+        const std::array<float, 3> background = dataset.background();
         for (size_t i = 0; i < batch && rep.volume_points < size_t(options.volume_points); ++i) {
           const ColourSample& c = samples[i];
           if (c.count < options.min_views) continue;
-          if (options.volume_max_colour_spread > 0 && c.spread > options.volume_max_colour_spread) continue;
+          if (options.volume_max_colour_spread > 0) {
+            if (c.spread > options.volume_max_colour_spread) continue;
+            // Consistently the dataset's background colour (empty space of a synthetic scene
+            // on black): such points are used last, only when too few others are found.
+            double distance_sq = 0;
+            for (int a = 0; a < 3; ++a) distance_sq += (c.mean[a] - background[a]) * (c.mean[a] - background[a]);
+            if (std::sqrt(distance_sq / 3.0) <= options.volume_max_colour_spread) {
+              if (background_like.size() < size_t(options.volume_points)) background_like.push_back({candidates[i], c.mean});
+              continue;
+            }
+          }
           for (int a = 0; a < 3; ++a) {
             positions.push_back(static_cast<float>(candidates[i][a]));
             colours.push_back(c.mean[a]);
           }
           ++rep.volume_points;
         }
+      }
+      for (size_t i = 0; i < background_like.size() && rep.volume_points < size_t(options.volume_points); ++i) {
+        for (int a = 0; a < 3; ++a) {
+          positions.push_back(static_cast<float>(background_like[i].first[a]));
+          colours.push_back(background_like[i].second[a]);
+        }
+        ++rep.volume_points;
       }
       rep.volume_candidates = static_cast<size_t>(drawn);
     }
