@@ -20,10 +20,11 @@
 //                 looks alike from every camera, a point in empty space does not;
 //                 occlusion is ignored), and whose mean colour is not the
 //                 dataset's background colour (within the same threshold: such a
-//                 point is empty space of a scene on a plain background; these fill
-//                 up only when too few other points are found). With masks, points that pass the hull rule
-//                 are rejected (they are foreground) and colours come from pixels
-//                 outside the masks (background). Without the consistency test most
+//                 point is empty space of a scene on a plain background; these
+//                 fill up only when too few other points are found). With masks,
+//                 points that pass the hull rule are rejected (they are foreground)
+//                 and colours come from pixels outside the masks (background).
+//                 Without the consistency test most
 //                 points would float in empty space, where training turns them into
 //                 view-specific floaters (on Panoptic: −2.7 dB on held-out cameras
 //                 after 300 steps, BENCHMARKS.md).

@@ -384,7 +384,8 @@ StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOption
       const long long max_attempts = (long long)options.volume_attempts_per_point * options.volume_points;
       std::vector<std::array<double, 3>> candidates;
       std::vector<ColourSample> samples;
-      std::vector<std::pair<std::array<double, 3>, std::array<float, 3>>> background_like;
+      const std::array<float, 3> background = dataset.background();
+      std::vector<std::pair<std::array<double, 3>, std::array<float, 3>>> background_like;  // (position, colour)
       long long drawn = 0;
       while (drawn < max_attempts && rep.volume_points < size_t(options.volume_points)) {
         const size_t batch = static_cast<size_t>(std::min<long long>(kBatch, max_attempts - drawn));
@@ -410,7 +411,6 @@ StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOption
           if (masked >= options.min_views && InsideHull(votes, options)) continue;  // foreground: the hull's job
           samples[i] = SampleColours(cams, candidates[i].data(), masked > 0 ? 0 : -1);
         }
-        const std::array<float, 3> background = dataset.background();
         for (size_t i = 0; i < batch && rep.volume_points < size_t(options.volume_points); ++i) {
           const ColourSample& c = samples[i];
           if (c.count < options.min_views) continue;
@@ -421,7 +421,9 @@ StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOption
             double distance_sq = 0;
             for (int a = 0; a < 3; ++a) distance_sq += (c.mean[a] - background[a]) * (c.mean[a] - background[a]);
             if (std::sqrt(distance_sq / 3.0) <= options.volume_max_colour_spread) {
-              if (background_like.size() < size_t(options.volume_points)) background_like.push_back({candidates[i], c.mean});
+              if (background_like.size() < size_t(options.volume_points)) {
+                background_like.push_back({candidates[i], c.mean});
+              }
               continue;
             }
           }
