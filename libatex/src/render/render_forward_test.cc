@@ -182,6 +182,20 @@ TEST(RenderForward, GaussianBehindTheCameraIsInvisible) {
   }
 }
 
+// The default near plane is the 3DGS rasterizer's 0.2 (kDefaultNearPlane): a Gaussian 0.15
+// in front of the camera is culled, one at 0.25 is drawn (a held-out camera must not see
+// the Gaussians of its own housing, BENCHMARKS.md stage 1).
+TEST(RenderForward, DefaultNearPlaneIsTheRasterizersCull) {
+  EXPECT_EQ(RenderSettings{}.near_plane, 0.2f);
+  const Camera camera = AxisCamera(32, 32, 20, 16, 16);
+  for (double z : {0.15, 0.25}) {
+    const auto g = OneGaussian<double>({0, 0, z}, {0.01, 0.01, 0.01}, {1, 0, 0, 0}, 0.9, {1, 1, 1});
+    auto out = RenderForward<double>(camera, g, nullptr, RenderSettings{});
+    ASSERT_TRUE(out.ok()) << out.status().ToString();
+    EXPECT_EQ(out->radius[0] > 0, z > 0.2) << z;
+  }
+}
+
 TEST(RenderForward, FrontOpaqueGaussianHidesTheBackOne) {
   const Camera camera = AxisCamera(32, 32, 20, 16, 16);
   // Index order opposite to depth order: compositing must follow depth.
