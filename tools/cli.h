@@ -5,14 +5,13 @@
 #include <chrono>
 #include <functional>
 #include <string>
-#include <vector>
 #include <string_view>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "asset_view.h"  // DatasetArgs
 #include "atex/status.h"
-#include "asset_view.h"
 
 namespace atex::cli {
 

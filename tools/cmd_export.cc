@@ -10,10 +10,10 @@
 #include <memory>
 
 #include "atex/container.h"
+#include "atex/converters/convert.h"
 #include "atex/converters/gltf.h"
 #include "atex/converters/splatv.h"
 #include "atex/file_io.h"
-#include "atex/converters/convert.h"
 #include "cli.h"
 
 namespace {
@@ -38,7 +38,6 @@ std::string Lower(std::string s) {
   return s;
 }
 
-// "a:b:step" -> a, a+step, ... <= b.
 double Seconds(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
@@ -76,28 +75,27 @@ int RunExport(const ExportArgs& a) {
     // The same START:END:STEP grammar as `atex convert --frames`.
     auto range = atex::ParseFrameRange(a.frames);
     if (!range.ok()) return atex::cli::Fail("export", range.status());
-    const std::vector<double> frame_times = range->Times();
-    const std::vector<double>* times = &frame_times;
+    const std::vector<double> times = range->Times();
     if (!asset->deformation) {
       return atex::cli::Fail("export", atex::MakeError(atex::StatusCode::kInvalidArgument, "--frames needs an asset with motion"));
     }
     std::error_code ec;
     std::filesystem::create_directories(out, ec);
     if (ec) return atex::cli::Fail("export", atex::MakeError(atex::StatusCode::kIoError, "cannot create folder ", a.output, ": ", ec.message()));
-    atex::cli::Progress progress("export frames", static_cast<long long>(times->size()));
+    atex::cli::Progress progress("export frames", static_cast<long long>(times.size()));
     nlohmann::json frames = nlohmann::json::array();
     uint64_t total = 0;
-    for (size_t i = 0; i < times->size(); ++i) {
+    for (size_t i = 0; i < times.size(); ++i) {
       char name[32];
       std::snprintf(name, sizeof name, "frame_%04zu.glb", i);
-      gltf.time = (*times)[i];
+      gltf.time = times[i];
       auto bytes = atex::EncodeGlb(*asset, gltf);
       if (!bytes.ok()) return atex::cli::Fail("export", bytes.status().WithContext(name));
       atex::Status s = atex::WriteFileAtomic((out / name).string(), *bytes);
       if (!s.ok()) return atex::cli::Fail("export", s);
       total += bytes->size();
-      frames.push_back({{"file", name}, {"time", (*times)[i]}});
-      if (i + 1 < times->size()) progress.Update(static_cast<long long>(i + 1));
+      frames.push_back({{"file", name}, {"time", times[i]}});
+      if (i + 1 < times.size()) progress.Update(static_cast<long long>(i + 1));
     }
     progress.Finish();
     const nlohmann::json manifest = {{"generator", "atex 0.1.0"}, {"format", "glb sequence"}, {"frames", frames}};
@@ -105,7 +103,7 @@ int RunExport(const ExportArgs& a) {
     atex::Status s = atex::WriteFileAtomic((out / "frames.json").string(), text.data(), text.size());
     if (!s.ok()) return atex::cli::Fail("export", s);
     summary["format"] = "glb sequence";
-    summary["frames"] = times->size();
+    summary["frames"] = times.size();
     summary["bytes"] = total;
   } else if (ext == ".glb" || ext == ".gltf") {
     atex::Status s = atex::WriteGltfFile(a.output, *asset, gltf);

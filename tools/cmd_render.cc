@@ -18,7 +18,6 @@ struct RenderArgs {
   bool json = false;
 };
 
-
 int RunRender(const RenderArgs& a) {
   using namespace atex;
   const char* cmd = "render";

@@ -1,11 +1,10 @@
 #!/usr/bin/env bash
 # The GPU experiments of BENCHMARKS.md, one phase per call (a lent GPU machine allows
 # 10 minutes per command; the build folder and out/ persist between phases).
-#   bench/device/paper_runs.sh build|lego|stage1|stage2|fit|matrix|build+matrix|budget+lego  OUT_DIR
+#   bench/device/paper_runs.sh build|lego|stage1|stage2|fit|matrix|build+matrix  OUT_DIR
 # The matrix phases run bench/run_matrix.py with --out out/panoptic and a deadline that fits
 # one call; rerun the same phase to continue (MATRIX_CONFIG picks the config, default
-# bench/configs/panoptic_session.json; budget+lego runs bench/configs/panoptic_budget.json
-# on the same models without FPS while the lego sample trains beside it).
+# bench/configs/panoptic_session.json; MATRIX_ARGS adds options, e.g. --only or --skip-fps).
 # Data: .devdata/panoptic_basketball (CMU Panoptic, 30 timesteps) and
 # .devdata/dnerf_lego_tiny/tiny_dnerf_data.npz (copies of ../shared/data).
 set -euo pipefail
@@ -91,13 +90,6 @@ case $phase in
       done
     fi
     tar czf "$out/panoptic_results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic 2>/dev/null || true
-    ;;
-  budget+lego)
-    LEGO_TIME=${LEGO_TIME:-330} "$0" lego "$out" > "$out/lego_phase.log" 2>&1 &
-    lego_pid=$!
-    MATRIX_CONFIG=bench/configs/panoptic_budget.json MATRIX_ARGS="--skip-fps ${MATRIX_ARGS:-}" "$0" matrix "$out" || true
-    wait $lego_pid || echo "lego phase failed" >&2
-    tar czf "$out/lego.tgz" -C "$out" $(cd "$out" && ls lego* 2>/dev/null) 2>/dev/null || true
     ;;
   *) echo "unknown phase $phase" >&2; exit 2 ;;
 esac

@@ -175,29 +175,11 @@ SceneFrame EstimateScene(const std::vector<CameraImages>& cams, const Dataset& d
   return scene;
 }
 
-// Mean colour of the pixels a point projects to. `want_mask`: 1 = only pixels
-// inside masks, 0 = only outside, −1 = any (cameras without masks always count).
-// Falls back to any pixel, then to grey.
-std::array<float, 3> MeanColour(const std::vector<CameraImages>& cams, const double x[3], int want_mask) {
-  for (int pass = 0; pass < 2; ++pass) {
-    double sum[3] = {0, 0, 0};
-    int count = 0;
-    for (const CameraImages& c : cams) {
-      int px, py;
-      if (!Project(c.view->camera, x, &px, &py)) continue;
-      if (pass == 0 && want_mask >= 0 && c.mask && (c.mask->at(px, py, 0) > 0.5f) != (want_mask == 1)) continue;
-      for (int ch = 0; ch < 3; ++ch) sum[ch] += c.image->at(px, py, ch);
-      ++count;
-    }
-    if (count > 0) return {float(sum[0] / count), float(sum[1] / count), float(sum[2] / count)};
-  }
-  return {0.5f, 0.5f, 0.5f};
-}
-
-// Colours a point projects to, outside the masks where `want_mask` is 0 (as
-// MeanColour, without fallbacks): their mean, their RMS distance to the mean
-// (0 for a point on a Lambertian surface seen without occlusion; large for a
-// point in empty space, whose cameras see different things) and their number.
+// Colours a point projects to. `want_mask`: 1 = only pixels inside masks, 0 = only
+// outside, −1 = any (cameras without masks always count). Their mean, their RMS
+// distance to the mean (0 for a point on a Lambertian surface seen without
+// occlusion; large for a point in empty space, whose cameras see different
+// things) and their number.
 struct ColourSample {
   std::array<float, 3> mean{0.5f, 0.5f, 0.5f};
   double spread = 0;
@@ -228,6 +210,14 @@ ColourSample SampleColours(const std::vector<CameraImages>& cams, const double x
   }
   out.spread = std::sqrt(std::max(0.0, (sum_sq / count - mean_sq) / 3.0));
   return out;
+}
+
+// Mean colour of the pixels a point projects to (`want_mask` as SampleColours),
+// falling back to any pixel, then to grey.
+std::array<float, 3> MeanColour(const std::vector<CameraImages>& cams, const double x[3], int want_mask) {
+  ColourSample c = SampleColours(cams, x, want_mask);
+  if (c.count == 0 && want_mask >= 0) c = SampleColours(cams, x, -1);
+  return c.count > 0 ? c.mean : std::array<float, 3>{0.5f, 0.5f, 0.5f};
 }
 
 Status ValidateInitOptions(const InitOptions& o) {

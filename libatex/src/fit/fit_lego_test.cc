@@ -70,12 +70,6 @@ TEST(FitLego, TestPsnrNeverRisesAsTheBudgetShrinks) {
   }
 }
 
-}  // namespace
-}  // namespace atex::fit
-
-namespace atex::fit {
-namespace {
-
 // `atex fit --finetune` retrains a fitted asset with stage 2 alone: the trainer must keep the
 // asset's own texture pool (sizes and texels as fitted), its Gaussians and its SH degree.
 TEST(FitLego, FinetuneKeepsTheFittedTexturePool) {

@@ -583,7 +583,6 @@ class Loop {
   }
 
   static constexpr int kSnapshotInterval = 200;
-  std::vector<View> progress_eval_views_;
   static constexpr int kMaxRollbacks = 5;
 
   const Dataset& data_;
@@ -595,6 +594,7 @@ class Loop {
   Metadata metadata_;
   TrainSummary summary_;
   double extent_ = 1.0;
+  std::vector<View> progress_eval_views_;  // ProgressEvalViews(), chosen once
   double lr_scale_ = 1.0;
   Clock::time_point run_start_ = Clock::now();
   int64_t total_steps_ = 0;  // steps over all phases: drives the camera schedule
