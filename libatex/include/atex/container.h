@@ -74,6 +74,35 @@ struct ReadOptions {
 // Large assets are encoded chunk-parallel (OpenMP); the bytes do not depend on it.
 StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOptions& options = {});
 
+// Remembers encoded chunks so that encoding an asset again, with some chunks'
+// content unchanged, compresses only the changed ones (the budget fitter encodes
+// hundreds of candidates that differ in one stream). A hit is verified byte for
+// byte against the chunk's uncompressed content and codec settings, so a cached
+// encode returns exactly the bytes of an uncached one. Keeps the most recently
+// used `entries_per_chunk` versions of each chunk type. Thread-safe.
+class EncodeCache {
+ public:
+  explicit EncodeCache(int entries_per_chunk = 4);
+  ~EncodeCache();
+  EncodeCache(const EncodeCache&) = delete;
+  EncodeCache& operator=(const EncodeCache&) = delete;
+  uint64_t hits() const;
+  uint64_t misses() const;
+  struct Impl;
+
+ private:
+  friend StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset&, const WriteOptions&, EncodeCache*);
+  Impl* impl_;
+};
+// EncodeAsset through `cache` (nullptr: no cache).
+StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOptions& options, EncodeCache* cache);
+
+// The asset a reader gets from EncodeAsset(asset, options): DecodeAsset's result
+// (with statistics iff options.write_stats), computed without the entropy coding
+// (lossless, so skipped) by passing each lossy stream through the same stream
+// encoder and decoder. Bitwise equal to decoding the file. Errors: EncodeAsset's.
+StatusOr<Asset> StoredValues(const Asset& asset, const WriteOptions& options);
+
 // Decodes and checks a whole file (every structural rule, every CRC, every value;
 // the result passes ValidateAsset). Unknown non-critical chunks are skipped,
 // unknown critical chunks refused (kUnknownCriticalChunk). Errors name the chunk

@@ -3,6 +3,8 @@
 // parallel when OpenMP is there; the bytes do not depend on it), lay them out.
 #include <cstring>
 #include <functional>
+#include <list>
+#include <mutex>
 
 #include "atex/container.h"
 #include "atex/file_io.h"
@@ -15,6 +17,59 @@
 #include "container/layout.h"
 
 namespace atex {
+
+// Per chunk type, the most recently used versions first.
+struct EncodeCache::Impl {
+  struct Entry {
+    std::vector<uint8_t> raw;  // the uncompressed content
+    container::CodecParams params;
+    int zstd_level = 0;
+    bool fallback_to_raw = true;
+    container::OutputChunk chunk;  // what Finish made of it
+  };
+  explicit Impl(int entries) : entries_per_chunk(entries < 1 ? 1 : entries) {}
+  const int entries_per_chunk;
+  std::mutex mutex;
+  std::array<std::list<Entry>, static_cast<size_t>(container::ChunkId::kCount)> chunks;
+  uint64_t hits = 0, misses = 0;
+
+  bool Find(container::ChunkId id, const std::vector<uint8_t>& raw, const container::CodecParams& p,
+            const WriteOptions& o, container::OutputChunk* out) {
+    std::lock_guard<std::mutex> lock(mutex);
+    auto& list = chunks[static_cast<size_t>(id)];
+    for (auto it = list.begin(); it != list.end(); ++it) {
+      if (it->zstd_level == o.zstd_level && it->fallback_to_raw == o.fallback_to_raw && it->params.codec == p.codec &&
+          it->params.element_size == p.element_size && it->params.components == p.components && it->params.skip == p.skip &&
+          it->raw == raw) {
+        *out = it->chunk;
+        list.splice(list.begin(), list, it);
+        ++hits;
+        return true;
+      }
+    }
+    ++misses;
+    return false;
+  }
+  void Add(container::ChunkId id, std::vector<uint8_t> raw, const container::CodecParams& p, const WriteOptions& o,
+           const container::OutputChunk& chunk) {
+    std::lock_guard<std::mutex> lock(mutex);
+    auto& list = chunks[static_cast<size_t>(id)];
+    list.push_front(Entry{std::move(raw), p, o.zstd_level, o.fallback_to_raw, chunk});
+    while (list.size() > static_cast<size_t>(entries_per_chunk)) list.pop_back();
+  }
+};
+
+EncodeCache::EncodeCache(int entries_per_chunk) : impl_(new Impl(entries_per_chunk)) {}
+EncodeCache::~EncodeCache() { delete impl_; }
+uint64_t EncodeCache::hits() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->hits;
+}
+uint64_t EncodeCache::misses() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->misses;
+}
+
 namespace container {
 namespace {
 
@@ -57,7 +112,7 @@ OutputChunk Header(ChunkId id, uint64_t raw_size) {
 }
 
 // Encodes content with `params`, falling back to raw when that is not smaller.
-StatusOr<OutputChunk> Finish(ChunkId id, std::vector<uint8_t> raw, CodecParams params, const WriteOptions& o) {
+StatusOr<OutputChunk> Encode(ChunkId id, std::vector<uint8_t> raw, CodecParams params, const WriteOptions& o) {
   OutputChunk chunk = Header(id, raw.size());
   if (!o.fallback_to_raw || params.codec != Codec::kRaw) {
     auto stored = EncodeChunk(raw.data(), raw.size(), params, o.zstd_level);
@@ -70,6 +125,23 @@ StatusOr<OutputChunk> Finish(ChunkId id, std::vector<uint8_t> raw, CodecParams p
   }
   chunk.codec = CodecParams{};
   chunk.stored = std::move(raw);
+  return chunk;
+}
+
+// The encoder of the current EncodeAsset call (set for each call, read by its jobs).
+struct Context {
+  const WriteOptions& options;
+  EncodeCache::Impl* cache;  // may be null
+};
+
+// Encode, through the cache when there is one.
+StatusOr<OutputChunk> Finish(ChunkId id, std::vector<uint8_t> raw, CodecParams params, const Context& c) {
+  if (c.cache == nullptr) return Encode(id, std::move(raw), params, c.options);
+  OutputChunk cached;
+  if (c.cache->Find(id, raw, params, c.options, &cached)) return cached;
+  std::vector<uint8_t> key = raw;
+  ATEX_ASSIGN_OR_RETURN(OutputChunk chunk, Encode(id, std::move(raw), params, c.options));
+  c.cache->Add(id, std::move(key), params, c.options, chunk);
   return chunk;
 }
 
@@ -94,19 +166,19 @@ CodecParams StreamCodec(const WriteOptions& o, ScalarEncoding encoding, uint32_t
 }
 
 ChunkJob StreamJob(ChunkId id, std::vector<float> values, uint64_t rows, uint32_t components, ScalarEncoding encoding,
-                   const WriteOptions& o, const char* what) {
-  return {id, [=, values = std::move(values), &o]() -> StatusOr<OutputChunk> {
+                   const Context& c, const char* what) {
+  return {id, [=, values = std::move(values), &c]() -> StatusOr<OutputChunk> {
             ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw, EncodeStream(values.data(), rows, components, encoding, what));
-            return Finish(id, std::move(raw), StreamCodec(o, encoding, components), o);
+            return Finish(id, std::move(raw), StreamCodec(c.options, encoding, components), c);
           }};
 }
 
 // A stream over an existing array (no copy); the array outlives the jobs.
 ChunkJob StreamJobRef(ChunkId id, const std::vector<float>& values, uint64_t rows, uint32_t components,
-                      ScalarEncoding encoding, const WriteOptions& o, const char* what) {
-  return {id, [=, &values, &o]() -> StatusOr<OutputChunk> {
+                      ScalarEncoding encoding, const Context& c, const char* what) {
+  return {id, [=, &values, &c]() -> StatusOr<OutputChunk> {
             ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw, EncodeStream(values.data(), rows, components, encoding, what));
-            return Finish(id, std::move(raw), StreamCodec(o, encoding, components), o);
+            return Finish(id, std::move(raw), StreamCodec(c.options, encoding, components), c);
           }};
 }
 
@@ -144,6 +216,10 @@ ChunkJob DracoPositionsJob(const std::vector<float>& positions, uint64_t n, cons
 }  // namespace container
 
 StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOptions& options) {
+  return EncodeAsset(asset, options, nullptr);
+}
+
+StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOptions& options, EncodeCache* cache) {
   using namespace container;
   ATEX_RETURN_IF_ERROR(CheckOptions(options));
   ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
@@ -152,21 +228,22 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
     const uint64_t n = g.size();
     const uint32_t k = static_cast<uint32_t>(g.sh_coeffs());
     const WriteOptions& o = options;
+    const Context ctx{options, cache != nullptr ? cache->impl_ : nullptr};
     std::vector<ChunkJob> jobs;
 
     jobs.push_back({ChunkId::kMeta, [&]() -> StatusOr<OutputChunk> {
                       ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw, EncodeMeta(asset.metadata));
-                      return Finish(ChunkId::kMeta, std::move(raw), StructuredCodec(o), o);
+                      return Finish(ChunkId::kMeta, std::move(raw), StructuredCodec(o), ctx);
                     }});
-    jobs.push_back({ChunkId::kGhdr, [&]() { return Finish(ChunkId::kGhdr, EncodeGhdr({n, g.sh_degree}), StructuredCodec(o), o); }});
+    jobs.push_back({ChunkId::kGhdr, [&]() { return Finish(ChunkId::kGhdr, EncodeGhdr({n, g.sh_degree}), StructuredCodec(o), ctx); }});
     if (o.draco_positions && n > 0) {
       jobs.push_back(DracoPositionsJob(g.positions, n, o));
     } else {
-      jobs.push_back(StreamJobRef(ChunkId::kGpos, g.positions, n, 3, o.positions, o, "positions"));
+      jobs.push_back(StreamJobRef(ChunkId::kGpos, g.positions, n, 3, o.positions, ctx, "positions"));
     }
-    jobs.push_back(StreamJobRef(ChunkId::kGrot, g.rotations, n, 4, o.rotations, o, "rotations"));
-    jobs.push_back(StreamJobRef(ChunkId::kGscl, g.log_scales, n, 3, o.log_scales, o, "log_scales"));
-    jobs.push_back(StreamJobRef(ChunkId::kGopa, g.opacity_logits, n, 1, o.opacities, o, "opacity_logits"));
+    jobs.push_back(StreamJobRef(ChunkId::kGrot, g.rotations, n, 4, o.rotations, ctx, "rotations"));
+    jobs.push_back(StreamJobRef(ChunkId::kGscl, g.log_scales, n, 3, o.log_scales, ctx, "log_scales"));
+    jobs.push_back(StreamJobRef(ChunkId::kGopa, g.opacity_logits, n, 1, o.opacities, ctx, "opacity_logits"));
     // sh [N][K][3] splits into DC [N][3] and rest [N][K-1][3].
     std::vector<float> sh_dc(n * 3), sh_rest(n * (k - 1) * 3);
     for (uint64_t i = 0; i < n; ++i) {
@@ -174,24 +251,24 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
       std::copy(row, row + 3, sh_dc.data() + i * 3);
       std::copy(row + 3, row + k * 3, sh_rest.data() + i * (k - 1) * 3);
     }
-    jobs.push_back(StreamJob(ChunkId::kGsh0, std::move(sh_dc), n, 3, o.sh_dc, o, "sh_dc"));
-    if (k > 1) jobs.push_back(StreamJob(ChunkId::kGshr, std::move(sh_rest), n, 3 * (k - 1), o.sh_rest, o, "sh_rest"));
+    jobs.push_back(StreamJob(ChunkId::kGsh0, std::move(sh_dc), n, 3, o.sh_dc, ctx, "sh_dc"));
+    if (k > 1) jobs.push_back(StreamJob(ChunkId::kGshr, std::move(sh_rest), n, 3 * (k - 1), o.sh_rest, ctx, "sh_rest"));
     if (asset.textures) {
       const TexturePool& t = *asset.textures;
-      jobs.push_back({ChunkId::kTlay, [&]() { return Finish(ChunkId::kTlay, EncodeTextureLayout(t), StructuredCodec(o), o); }});
-      jobs.push_back(StreamJobRef(ChunkId::kTexl, t.texels, t.texel_count(), kTexelChannels, o.texels, o, "texels"));
+      jobs.push_back({ChunkId::kTlay, [&]() { return Finish(ChunkId::kTlay, EncodeTextureLayout(t), StructuredCodec(o), ctx); }});
+      jobs.push_back(StreamJobRef(ChunkId::kTexl, t.texels, t.texel_count(), kTexelChannels, o.texels, ctx, "texels"));
     }
     if (asset.deformation) {
       const DeformationField& d = *asset.deformation;
       jobs.push_back({ChunkId::kDcfg, [&]() {
-                        return Finish(ChunkId::kDcfg, EncodeDeformationConfig(d.config), StructuredCodec(o), o);
+                        return Finish(ChunkId::kDcfg, EncodeDeformationConfig(d.config), StructuredCodec(o), ctx);
                       }});
       std::vector<float> grids = FlattenGrids(d);
       const uint64_t grid_count = grids.size();
-      jobs.push_back(StreamJob(ChunkId::kDgrd, std::move(grids), grid_count, 1, o.deformation_grids, o, "deformation grids"));
+      jobs.push_back(StreamJob(ChunkId::kDgrd, std::move(grids), grid_count, 1, o.deformation_grids, ctx, "deformation grids"));
       std::vector<float> mlp = FlattenMlp(d);
       const uint64_t mlp_count = mlp.size();
-      jobs.push_back(StreamJob(ChunkId::kDmlp, std::move(mlp), mlp_count, 1, ScalarEncoding::kFloat32, o, "deformation MLP"));
+      jobs.push_back(StreamJob(ChunkId::kDmlp, std::move(mlp), mlp_count, 1, ScalarEncoding::kFloat32, ctx, "deformation MLP"));
     }
     if (asset.stats && o.write_stats) {
       const GaussianStats& s = *asset.stats;
@@ -202,7 +279,7 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
         rows[i * 4 + 2] = s.peak_scale_v[i];
         rows[i * 4 + 3] = s.importance[i];
       }
-      jobs.push_back(StreamJob(ChunkId::kGsta, std::move(rows), n, 4, ScalarEncoding::kFloat32, o, "stats"));
+      jobs.push_back(StreamJob(ChunkId::kGsta, std::move(rows), n, 4, ScalarEncoding::kFloat32, ctx, "stats"));
     }
 
     std::vector<StatusOr<OutputChunk>> results(jobs.size(), Status(StatusCode::kInternal, "chunk not encoded"));

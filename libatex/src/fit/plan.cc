@@ -220,13 +220,14 @@ struct Measured {
   double distortion = 0;
 };
 
-// Encodes (exact bytes), decodes (exact stored values) and renders the probes.
+// Encodes (exact bytes; unchanged chunks come from the cache), takes the values a
+// reader gets (StoredValues: bitwise the decoded file) and renders the probes.
 StatusOr<Measured> Measure(const State& state, ProbeRenderer* renderer, const std::vector<Image>& reference,
-                           Asset* decoded_out = nullptr) {
-  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(state.asset, state.write));
-  ReadOptions read;
-  read.read_stats = false;
-  ATEX_ASSIGN_OR_RETURN(Asset decoded, DecodeAsset(bytes.data(), bytes.size(), read));
+                           EncodeCache* cache, Asset* decoded_out = nullptr) {
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(state.asset, state.write, cache));
+  WriteOptions values_of = state.write;
+  values_of.write_stats = false;  // the renders do not need them
+  ATEX_ASSIGN_OR_RETURN(Asset decoded, StoredValues(state.asset, values_of));
   ATEX_ASSIGN_OR_RETURN(std::vector<Image> renders, renderer->Render(decoded));
   ATEX_ASSIGN_OR_RETURN(double mse, MeanSquaredError(renders, reference));
   if (decoded_out != nullptr) *decoded_out = std::move(decoded);
@@ -305,7 +306,10 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   State state{asset, options.write, {}};
   state.kept.resize(asset.gaussians.size());
   std::iota(state.kept.begin(), state.kept.end(), 0u);
-  ATEX_ASSIGN_OR_RETURN(Measured current, Measure(state, renderer, reference));
+  // Most candidates change one or two chunks of the current state; the others are
+  // compressed once, not once per candidate.
+  EncodeCache chunks(3);
+  ATEX_ASSIGN_OR_RETURN(Measured current, Measure(state, renderer, reference, &chunks));
   plan.initial_bytes = current.bytes;
   plan.initial_distortion = current.distortion;
 
@@ -336,7 +340,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
              .ok()) {
       return e;  // a move the state cannot take (e.g. nothing left to halve) is not a move
     }
-    auto measured = Measure(e.next, renderer, reference, &e.decoded);
+    auto measured = Measure(e.next, renderer, reference, &chunks, &e.decoded);
     if (!measured.ok()) {
       // A stream that an encoding cannot hold (f16 overflow) is simply not a move.
       if (measured.status().code() == StatusCode::kOutOfRange) return e;
@@ -436,7 +440,7 @@ StatusOr<State> Replay(const Asset& asset, const Plan& plan, const WriteOptions&
 // After an indivisible last move: the smallest count of the latest divisible move that still
 // fits (its recorded count does), so that the slack below the budget is spent again.
 Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
-                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes) {
+                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache) {
   size_t k = moves->size();
   for (size_t i = moves->size(); i-- > 0;) {
     if ((*moves)[i].divisible()) {
@@ -450,7 +454,7 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
   while (lo < hi) {
     const uint64_t mid = lo + (hi - lo) / 2;
     ATEX_ASSIGN_OR_RETURN(State trial, Replay(asset, plan, write, *moves, k, mid));
-    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, EncodeAsset(trial.asset, trial.write));
+    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, EncodeAsset(trial.asset, trial.write, cache));
     if (trial_bytes.size() <= budget) {
       hi = mid;
       best.emplace(std::move(trial), std::move(trial_bytes));
@@ -469,7 +473,7 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
   for (size_t i = 0; i < moves->size(); ++i) {
     ATEX_RETURN_IF_ERROR(ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept));
     if (i >= k) {
-      ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> step_bytes, EncodeAsset(replay.asset, replay.write));
+      ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> step_bytes, EncodeAsset(replay.asset, replay.write, cache));
       (*moves)[i].bytes_after = step_bytes.size();
     }
   }
@@ -485,7 +489,9 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
   state.kept.resize(asset.gaussians.size());
   std::iota(state.kept.begin(), state.kept.end(), 0u);
   Fitted out;
-  const auto encode = [](const State& s) { return EncodeAsset(s.asset, s.write); };
+  // The searches below encode many states that differ from each other in a few chunks.
+  EncodeCache cache(3);
+  const auto encode = [&cache](const State& s) { return EncodeAsset(s.asset, s.write, &cache); };
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, encode(state));
   if (bytes.size() > budget_bytes) {
     size_t j = 0;
@@ -525,7 +531,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
     if (!last.divisible()) {
       // An indivisible last move (an encoding, the SH degree, the grid) can land far below the
       // budget; give the slack back by undoing part of the latest divisible move before it.
-      ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes));
+      ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes, &cache));
     }
   }
   if (bytes.size() > budget_bytes) {

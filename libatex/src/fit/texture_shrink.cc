@@ -3,7 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <set>
+#include <functional>
+#include <queue>
 #include <tuple>
 #include <vector>
 
@@ -68,16 +69,16 @@ const Projections& GetProjections() {
   return projections;
 }
 
-// Separable projection of values [h][w][4] to [h'][w'][4].
-std::vector<double> Project(const std::vector<double>& act, int h, int w, int nh, int nw) {
+// Separable projection of values [h][w][4] to [h'][w'][4] (sides at most 4: fixed-size arrays, no allocation).
+using TexelBlock = std::array<double, 4 * 4 * kTexelChannels>;
+TexelBlock Project(const TexelBlock& act, int h, int w, int nh, int nw) {
   const auto& pw = GetProjections().p[Log2Side(w)][Log2Side(nw)];
   const auto& ph = GetProjections().p[Log2Side(h)][Log2Side(nh)];
-  std::vector<double> rows(static_cast<size_t>(h) * nw * 4, 0.0);
+  TexelBlock rows{}, out{};
   for (int y = 0; y < h; ++y)
     for (int x2 = 0; x2 < nw; ++x2)
       for (int x = 0; x < w; ++x)
         for (int c = 0; c < 4; ++c) rows[(y * nw + x2) * 4 + c] += pw[x2 * w + x] * act[(y * w + x) * 4 + c];
-  std::vector<double> out(static_cast<size_t>(nh) * nw * 4, 0.0);
   for (int y2 = 0; y2 < nh; ++y2)
     for (int y = 0; y < h; ++y)
       for (int x = 0; x < nw; ++x)
@@ -90,23 +91,38 @@ std::vector<double> Project(const std::vector<double>& act, int h, int w, int nh
 void ShrinkTexture(const float* src, int height, int width, float* dst, int new_height, int new_width) {
   // The renderer interpolates the RAW texels and activates afterwards (0.1·tanh of the
   // bilinear value), so the projection works on the raw field.
-  std::vector<double> raw(static_cast<size_t>(height) * width * 4);
-  for (size_t k = 0; k < raw.size(); ++k) raw[k] = src[k];
-  const std::vector<double> projected = Project(raw, height, width, new_height, new_width);
-  for (size_t k = 0; k < projected.size(); ++k) dst[k] = static_cast<float>(projected[k]);
+  TexelBlock raw{};
+  for (int k = 0; k < height * width * 4; ++k) raw[k] = src[k];
+  const TexelBlock projected = Project(raw, height, width, new_height, new_width);
+  for (int k = 0; k < new_height * new_width * 4; ++k) dst[k] = static_cast<float>(projected[k]);
 }
 
-double ShrinkResidual(const float* src, int height, int width, int new_height, int new_width) {
-  std::vector<float> shrunk(static_cast<size_t>(new_height) * new_width * 4);
+namespace {
+
+// ShrinkResidual with tanh(src) given (a texture's two candidate halvings share it).
+double ShrinkResidualOf(const float* src, const double* tanh_src, int height, int width, int new_height, int new_width) {
+  std::array<float, 4 * 4 * kTexelChannels> shrunk, back;
   ShrinkTexture(src, height, width, shrunk.data(), new_height, new_width);
-  std::vector<float> back(static_cast<size_t>(height) * width * 4);
   detail::UpsampleTexture(shrunk.data(), new_height, new_width, back.data(), height, width, 4);
+  const int count = height * width * 4;
   double sum = 0;
-  for (size_t k = 0; k < back.size(); ++k) {
-    const double d = kScale * (std::tanh(static_cast<double>(back[k])) - std::tanh(static_cast<double>(src[k])));
+  for (int k = 0; k < count; ++k) {
+    const double d = kScale * (std::tanh(static_cast<double>(back[k])) - tanh_src[k]);
     sum += d * d;
   }
-  return sum / static_cast<double>(back.size());
+  return sum / static_cast<double>(count);
+}
+
+std::array<double, 4 * 4 * kTexelChannels> TanhOf(const float* src, int height, int width) {
+  std::array<double, 4 * 4 * kTexelChannels> out{};
+  for (int k = 0; k < height * width * kTexelChannels; ++k) out[k] = std::tanh(static_cast<double>(src[k]));
+  return out;
+}
+
+}  // namespace
+
+double ShrinkResidual(const float* src, int height, int width, int new_height, int new_width) {
+  return ShrinkResidualOf(src, TanhOf(src, height, width).data(), height, width, new_height, new_width);
 }
 
 uint64_t ShrinkableTexels(const TexturePool& pool) { return pool.texel_count() - pool.size(); }
@@ -118,8 +134,8 @@ struct Op {
   double demand = 0;
   uint32_t index = 0;
   uint8_t new_h = 1, new_w = 1;
-  bool operator<(const Op& o) const {
-    return std::tie(cost, demand, index) < std::tie(o.cost, o.demand, o.index);
+  bool operator>(const Op& o) const {
+    return std::tie(cost, demand, index) > std::tie(o.cost, o.demand, o.index);
   }
 };
 
@@ -151,19 +167,24 @@ StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count) {
     if (h == 1 && w == 1) return false;
     const double importance = std::max(0.0f, stat(importance_of, i, 1.0f));
     struct Choice { double cost; double scale; int nh, nw; };
-    std::vector<Choice> choices;
+    std::array<Choice, 2> choices;
+    int choice_count = 0;
     // Halving w (u axis) or h (v axis); the peak scale along the axis breaks ties (smaller matters less).
+    const float* src = texels_of(i);
+    const auto tanh_src = TanhOf(src, h, w);
     if (w > 1) {
-      const double r = ShrinkResidual(texels_of(i), h, w, h, w / 2);
-      choices.push_back({importance * r * h * w / (h * (w - w / 2)), stat(scale_u_of, i, 0.0f), h, w / 2});
+      const double r = ShrinkResidualOf(src, tanh_src.data(), h, w, h, w / 2);
+      choices[choice_count++] = {importance * r * h * w / (h * (w - w / 2)), stat(scale_u_of, i, 0.0f), h, w / 2};
     }
     if (h > 1) {
-      const double r = ShrinkResidual(texels_of(i), h, w, h / 2, w);
-      choices.push_back({importance * r * h * w / (w * (h - h / 2)), stat(scale_v_of, i, 0.0f), h / 2, w});
+      const double r = ShrinkResidualOf(src, tanh_src.data(), h, w, h / 2, w);
+      choices[choice_count++] = {importance * r * h * w / (w * (h - h / 2)), stat(scale_v_of, i, 0.0f), h / 2, w};
     }
     const Choice* best = &choices[0];
-    for (const Choice& c : choices) {
-      if (c.cost < best->cost || (c.cost == best->cost && c.scale < best->scale)) best = &c;
+    for (int c = 1; c < choice_count; ++c) {
+      if (choices[c].cost < best->cost || (choices[c].cost == best->cost && choices[c].scale < best->scale)) {
+        best = &choices[c];
+      }
     }
     op->cost = best->cost;
     op->demand = stat(demand_of, i, 0.0f);
@@ -172,15 +193,25 @@ StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count) {
     op->new_w = static_cast<uint8_t>(best->nw);
     return true;
   };
-  std::set<Op> queue;
-  for (uint32_t i = 0; i < n; ++i) {
-    Op op;
-    if (best_op(i, &op)) queue.insert(op);
+  // Every texture's cheapest halving, computed in parallel (independent), then a
+  // min-heap in Op order (a total order, so the result does not depend on threads).
+  std::vector<Op> initial(n);
+  std::vector<uint8_t> has_op(n, 0);
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static) if (n > 4096)
+#endif
+  for (int64_t i = 0; i < static_cast<int64_t>(n); ++i) {
+    has_op[i] = best_op(static_cast<uint32_t>(i), &initial[i]);
   }
+  std::vector<Op> heap;
+  heap.reserve(n);
+  for (size_t i = 0; i < n; ++i)
+    if (has_op[i]) heap.push_back(initial[i]);
+  std::priority_queue<Op, std::vector<Op>, std::greater<Op>> queue(std::greater<Op>{}, std::move(heap));
   uint64_t done = 0;
   while (done < count && !queue.empty()) {
-    const Op op = *queue.begin();
-    queue.erase(queue.begin());
+    const Op op = queue.top();
+    queue.pop();
     const uint32_t i = op.index;
     std::vector<float> shrunk(static_cast<size_t>(op.new_h) * op.new_w * kTexelChannels);
     ShrinkTexture(texels_of(i), heights[i], widths[i], shrunk.data(), op.new_h, op.new_w);
@@ -189,7 +220,7 @@ StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count) {
     widths[i] = op.new_w;
     ++done;
     Op next;
-    if (best_op(i, &next)) queue.insert(next);
+    if (best_op(i, &next)) queue.push(next);
   }
   // Rebuild the packed pool.
   TexturePool out;

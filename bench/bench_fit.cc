@@ -1,0 +1,137 @@
+// Where `atex fit` spends its time on a large textured model: one evaluation of a
+// candidate move is apply (the lever), encode (exact bytes), decode (exact stored
+// values), then load and render the probes. This times every part but the render
+// (the CUDA backend's, measured on the device) on a synthetic model the size of
+// Panoptic basketball's uniform 4x4 stage-2 model (360k Gaussians, SH degree 3,
+// 16 texels each, a realistic deformation field, f32 streams as training writes).
+//
+//   bench_fit [--benchmark_filter=...]
+#include <benchmark/benchmark.h>
+
+#include <numeric>
+
+#include "atex/container.h"
+#include "atex/fit.h"
+#include "atex/train/trainer.h"
+#include "container/synthetic_asset.h"
+
+namespace {
+
+constexpr size_t kGaussians = 360'000;
+
+const atex::Asset& UniformModel() {
+  static const atex::Asset asset = [] {
+    atex::container::SyntheticAssetOptions o;
+    o.seed = 7;
+    o.gaussians = kGaussians;
+    o.sh_degree = 3;
+    o.textures = atex::container::SyntheticTextures::kUniform;
+    o.deformation = true;
+    o.realistic_deformation = true;
+    o.stats = true;
+    return atex::container::MakeSyntheticAsset(o);
+  }();
+  return asset;
+}
+
+const std::vector<uint8_t>& UniformFile() {
+  static const std::vector<uint8_t> bytes = *atex::EncodeAsset(UniformModel());
+  return bytes;
+}
+
+void BM_FitEncode(benchmark::State& state) {
+  for (auto _ : state) {
+    auto bytes = atex::EncodeAsset(UniformModel());
+    benchmark::DoNotOptimize(bytes);
+    state.counters["file_MB"] = static_cast<double>(bytes->size()) / 1e6;
+  }
+}
+
+void BM_FitDecode(benchmark::State& state) {
+  atex::ReadOptions read;
+  read.read_stats = false;
+  for (auto _ : state) {
+    auto asset = atex::DecodeAsset(UniformFile().data(), UniformFile().size(), read);
+    benchmark::DoNotOptimize(asset);
+  }
+}
+
+// What the fitter pays per candidate that changes one stream's encoding: the other
+// chunks come from the cache (filled by the state's own encode).
+void BM_FitEncodeCachedOneStreamChanged(benchmark::State& state) {
+  atex::EncodeCache cache(3);
+  (void)atex::EncodeAsset(UniformModel(), {}, &cache);
+  bool flip = false;
+  for (auto _ : state) {
+    atex::WriteOptions w;
+    w.rotations = flip ? atex::ScalarEncoding::kQuant16 : atex::ScalarEncoding::kFloat16;
+    flip = !flip;
+    auto bytes = atex::EncodeAsset(UniformModel(), w, &cache);
+    benchmark::DoNotOptimize(bytes);
+  }
+}
+
+// The values a reader gets, without the file: StoredValues with q16 texels and rotations.
+void BM_FitStoredValues(benchmark::State& state) {
+  atex::WriteOptions w;
+  w.texels = atex::ScalarEncoding::kQuant16;
+  w.rotations = atex::ScalarEncoding::kQuant16;
+  w.write_stats = false;
+  for (auto _ : state) {
+    auto asset = atex::StoredValues(UniformModel(), w);
+    benchmark::DoNotOptimize(asset);
+  }
+}
+
+void BM_FitShrinkTextures(benchmark::State& state) {
+  // One texture move of the plan: about 10 % of the growable textures lose an axis.
+  for (auto _ : state) {
+    state.PauseTiming();
+    atex::Asset asset = UniformModel();
+    state.ResumeTiming();
+    atex::fit::Move move;
+    move.lever = atex::fit::Lever::kTextures;
+    move.count = kGaussians / 10;
+    std::vector<uint32_t> kept(kGaussians);
+    std::iota(kept.begin(), kept.end(), 0u);
+    atex::WriteOptions write;
+    auto s = atex::fit::ApplyMove(move, {}, &asset, &write, &kept);
+    benchmark::DoNotOptimize(s);
+  }
+}
+
+void BM_FitPrune(benchmark::State& state) {
+  const std::vector<uint32_t> order = atex::fit::ImportanceOrder(UniformModel(), 6666);
+  for (auto _ : state) {
+    state.PauseTiming();
+    atex::Asset asset = UniformModel();
+    std::vector<uint32_t> kept(kGaussians);
+    std::iota(kept.begin(), kept.end(), 0u);
+    state.ResumeTiming();
+    atex::fit::Move move;
+    move.lever = atex::fit::Lever::kPrune;
+    move.count = kGaussians / 10;
+    atex::WriteOptions write;
+    auto s = atex::fit::ApplyMove(move, order, &asset, &write, &kept);
+    benchmark::DoNotOptimize(s);
+  }
+}
+
+void BM_FitStateFromAsset(benchmark::State& state) {
+  for (auto _ : state) {
+    auto s = atex::train::StateFromAsset(UniformModel());
+    benchmark::DoNotOptimize(s);
+  }
+}
+
+BENCHMARK(BM_FitEncode)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FitDecode)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FitEncodeCachedOneStreamChanged)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FitStoredValues)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FitShrinkTextures)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FitPrune)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FitStateFromAsset)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,126 @@
+// EncodeCache (cached encodes are byte-identical to uncached ones, hits happen
+// only for unchanged content) and StoredValues (bitwise what decoding the file gives).
+#include <gtest/gtest.h>
+
+#include "atex/container.h"
+#include "container/asset_compare.h"
+#include "container/synthetic_asset.h"
+
+namespace atex {
+namespace {
+
+using container::MakeSyntheticAsset;
+using container::SyntheticAssetOptions;
+using container::SyntheticTextures;
+
+Asset Sample(uint64_t seed, size_t n, int degree, SyntheticTextures textures) {
+  SyntheticAssetOptions o;
+  o.seed = seed;
+  o.gaussians = n;
+  o.sh_degree = degree;
+  o.textures = textures;
+  o.deformation = true;
+  o.stats = true;
+  return MakeSyntheticAsset(o);
+}
+
+constexpr ScalarEncoding kEncodings[] = {ScalarEncoding::kFloat32, ScalarEncoding::kFloat16, ScalarEncoding::kQuant16,
+                                         ScalarEncoding::kQuant8};
+
+// A deterministic mix of encodings for case `c`.
+WriteOptions Mix(int c) {
+  WriteOptions w;
+  const auto pick = [&](int k) { return kEncodings[(c / (k + 1) + k) % 4]; };
+  w.positions = pick(0);
+  w.rotations = pick(1);
+  w.log_scales = pick(2);
+  w.opacities = pick(3);
+  w.sh_dc = pick(4);
+  w.sh_rest = pick(5);
+  w.texels = pick(6);
+  w.deformation_grids = pick(7);
+  w.codec = c % 3 == 0 ? Codec::kDeltaShuffleZstd : c % 3 == 1 ? Codec::kShuffleZstd : Codec::kRaw;
+  w.write_stats = c % 2 == 0;
+  return w;
+}
+
+TEST(EncodeCache, CachedBytesEqualUncachedAcrossChangingAssets) {
+  EncodeCache cache(2);
+  Asset asset = Sample(3, 500, 3, SyntheticTextures::kMixed);
+  uint64_t expected_hits = 0;
+  for (int c = 0; c < 24; ++c) {
+    const WriteOptions w = Mix(c % 6);
+    if (c % 4 == 3) asset.gaussians.positions[c] += 0.25f;  // one stream changes, the rest may hit
+    const auto plain = EncodeAsset(asset, w);
+    const uint64_t hits_before = cache.hits();
+    const auto cached = EncodeAsset(asset, w, &cache);
+    ASSERT_TRUE(plain.ok() && cached.ok()) << plain.status().ToString() << cached.status().ToString();
+    ASSERT_EQ(*plain, *cached) << "case " << c;
+    // The same encode again: every chunk is a hit.
+    const uint64_t misses_before = cache.misses();
+    const auto again = EncodeAsset(asset, w, &cache);
+    ASSERT_TRUE(again.ok());
+    ASSERT_EQ(*plain, *again);
+    EXPECT_EQ(cache.misses(), misses_before) << "case " << c;
+    expected_hits += cache.hits() > hits_before ? 1 : 0;
+  }
+  EXPECT_GT(expected_hits, 0u);
+}
+
+TEST(EncodeCache, ChangedContentIsAMissNotAStaleHit) {
+  EncodeCache cache;
+  Asset asset = Sample(5, 200, 1, SyntheticTextures::kUniform);
+  const WriteOptions w = Mix(0);
+  ASSERT_TRUE(EncodeAsset(asset, w, &cache).ok());
+  const uint64_t misses = cache.misses();
+  asset.textures->texels.back() += 1e-3f;  // the last byte of one chunk's content
+  const auto cached = EncodeAsset(asset, w, &cache);
+  const auto plain = EncodeAsset(asset, w);
+  ASSERT_TRUE(cached.ok() && plain.ok());
+  EXPECT_EQ(*cached, *plain);
+  EXPECT_EQ(cache.misses(), misses + 1);  // TEXL only
+  // A different zstd level or codec is a different chunk too.
+  WriteOptions w9 = w;
+  w9.zstd_level = 9;
+  const auto level9 = EncodeAsset(asset, w9, &cache);
+  const auto plain9 = EncodeAsset(asset, w9);
+  ASSERT_TRUE(level9.ok() && plain9.ok());
+  EXPECT_EQ(*level9, *plain9);
+}
+
+TEST(StoredValues, BitwiseEqualToDecodingTheFile) {
+  int cases = 0;
+  for (SyntheticTextures tex : {SyntheticTextures::kNone, SyntheticTextures::kUniform, SyntheticTextures::kMixed}) {
+    for (int degree : {0, 2, 3}) {
+      for (size_t n : {0, 1, 257}) {
+        const Asset asset = Sample(11 + degree + n, n, degree, tex);
+        for (int c = 0; c < 12; ++c) {
+          const WriteOptions w = Mix(c);
+          const auto bytes = EncodeAsset(asset, w);
+          ASSERT_TRUE(bytes.ok()) << bytes.status().ToString();
+          const auto decoded = DecodeAsset(bytes->data(), bytes->size());
+          ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+          const auto stored = StoredValues(asset, w);
+          ASSERT_TRUE(stored.ok()) << stored.status().ToString();
+          ASSERT_TRUE(testing::AssetsEqual(*decoded, *stored))
+              << "textures " << int(tex) << " degree " << degree << " n " << n << " case " << c;
+          ++cases;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(cases, 3 * 3 * 3 * 12);
+}
+
+TEST(StoredValues, RefusesWhatEncodingRefuses) {
+  Asset asset = Sample(2, 10, 0, SyntheticTextures::kNone);
+  asset.gaussians.positions[4] = 1e6f;  // beyond f16
+  WriteOptions w;
+  w.positions = ScalarEncoding::kFloat16;
+  const auto stored = StoredValues(asset, w);
+  ASSERT_FALSE(stored.ok());
+  EXPECT_EQ(stored.status().code(), EncodeAsset(asset, w).status().code());
+}
+
+}  // namespace
+}  // namespace atex
