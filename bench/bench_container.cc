@@ -13,24 +13,14 @@
 #include <string>
 
 #include "atex/container.h"
-#include "container/synthetic_asset.h"
+#include "bench_configs.h"
 
 namespace {
 
 constexpr size_t kGaussians = 1'000'000;
 
 const atex::Asset& BenchAsset() {
-  static const atex::Asset asset = [] {
-    atex::container::SyntheticAssetOptions o;
-    o.seed = 1;
-    o.gaussians = kGaussians;
-    o.sh_degree = 3;
-    o.textures = atex::container::SyntheticTextures::kMixed;
-    o.deformation = true;
-    o.realistic_deformation = true;
-    o.stats = true;
-    return atex::container::MakeSyntheticAsset(o);
-  }();
+  static const atex::Asset asset = SyntheticModel(kGaussians, atex::container::SyntheticTextures::kMixed, 1);
   return asset;
 }
 

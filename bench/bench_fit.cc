@@ -13,24 +13,14 @@
 #include "atex/container.h"
 #include "atex/fit.h"
 #include "atex/train/trainer.h"
-#include "container/synthetic_asset.h"
+#include "bench_configs.h"
 
 namespace {
 
 constexpr size_t kGaussians = 360'000;
 
 const atex::Asset& UniformModel() {
-  static const atex::Asset asset = [] {
-    atex::container::SyntheticAssetOptions o;
-    o.seed = 7;
-    o.gaussians = kGaussians;
-    o.sh_degree = 3;
-    o.textures = atex::container::SyntheticTextures::kUniform;
-    o.deformation = true;
-    o.realistic_deformation = true;
-    o.stats = true;
-    return atex::container::MakeSyntheticAsset(o);
-  }();
+  static const atex::Asset asset = SyntheticModel(kGaussians, atex::container::SyntheticTextures::kUniform, 7);
   return asset;
 }
 
@@ -68,18 +58,6 @@ void BM_FitEncodeCachedOneStreamChanged(benchmark::State& state) {
     flip = !flip;
     auto bytes = atex::EncodeAsset(UniformModel(), w, &cache);
     benchmark::DoNotOptimize(bytes);
-  }
-}
-
-// The values a reader gets, without the file: StoredValues with q16 texels and rotations.
-void BM_FitStoredValues(benchmark::State& state) {
-  atex::WriteOptions w;
-  w.texels = atex::ScalarEncoding::kQuant16;
-  w.rotations = atex::ScalarEncoding::kQuant16;
-  w.write_stats = false;
-  for (auto _ : state) {
-    auto asset = atex::StoredValues(UniformModel(), w);
-    benchmark::DoNotOptimize(asset);
   }
 }
 
@@ -127,7 +105,6 @@ void BM_FitStateFromAsset(benchmark::State& state) {
 BENCHMARK(BM_FitEncode)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_FitDecode)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_FitEncodeCachedOneStreamChanged)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_FitStoredValues)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_FitShrinkTextures)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_FitPrune)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_FitStateFromAsset)->Unit(benchmark::kMillisecond)->UseRealTime();

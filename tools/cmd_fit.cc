@@ -24,8 +24,8 @@ struct FitArgs {
   double keep_count = 0;
   std::string order_from;
   double quality = 0;
-  std::string data, kind = "auto";
-  int timesteps = 0, downscale = 1;
+  std::string data;
+  atex::cli::DatasetArgs dataset;
   int probes = 8, probe_size = 256, eval_views = 0;
   int finetune = 0;
   std::string backend = "auto";
@@ -131,7 +131,7 @@ int RunFit(const FitArgs& a) {
 
   std::unique_ptr<Dataset> dataset;
   if (!a.data.empty()) {
-    auto opened = cli::OpenDatasetArgs(a.data, {.kind = a.kind, .timesteps = a.timesteps, .downscale = a.downscale});
+    auto opened = cli::OpenDatasetArgs(a.data, a.dataset);
     if (!opened.ok()) return cli::Fail(cmd, opened.status());
     dataset = std::move(*opened);
   }
@@ -333,9 +333,7 @@ atex::cli::Runner SetupFit(CLI::App& app) {
                  "Take the importance order from this asset (same Gaussians, e.g. the shared stage-1 model)");
   app.add_option("--quality", a->quality, "Smallest asset whose test PSNR stays at or above this (needs --data)");
   app.add_option("--data", a->data, "Dataset: distortion from its training views, PSNR on its test views");
-  app.add_option("--dataset-kind", a->kind, "auto, panoptic, dnerf, dnerf-npz, n3dv")->capture_default_str();
-  app.add_option("--timesteps", a->timesteps, "Use only the first N timesteps (0 = all present)");
-  app.add_option("--downscale", a->downscale, "Integer image downscale factor")->capture_default_str();
+  atex::cli::AddDatasetOptions(app, &a->dataset);
   app.add_option("--probes", a->probes, "Views the distortion is measured from")->capture_default_str();
   app.add_option("--probe-size", a->probe_size, "Longer side of the probe renders in pixels")->capture_default_str();
   app.add_option("--eval-views", a->eval_views, "Test views for PSNR (evenly spaced; 0 = all)")->capture_default_str();

@@ -17,8 +17,9 @@
 namespace {
 
 struct FpsArgs {
-  std::string asset, data, view = "test:0", size, backend = "auto", kind = "auto";
-  int repeats = 100, timesteps = 0;
+  std::string asset, data, view = "test:0", size, backend = "auto";
+  atex::cli::DatasetArgs dataset;
+  int repeats = 100;
   bool json = false;
 };
 
@@ -38,7 +39,7 @@ atex::Camera Reframe(const atex::Camera& c, int width, int height) {
 int RunFps(const FpsArgs& a) {
   using namespace atex;
   const char* cmd = "fps";
-  auto dataset = cli::OpenDatasetArgs(a.data, {.kind = a.kind, .timesteps = a.timesteps, .downscale = 1});
+  auto dataset = cli::OpenDatasetArgs(a.data, a.dataset);
   if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
   // A malformed --view is an error with the spec, never an exception.
   auto view = cli::PickView(**dataset, a.view);
@@ -102,8 +103,7 @@ atex::cli::Runner SetupFps(CLI::App& app) {
   app.add_option("--size", a->size, "Re-frame the camera to WxH (e.g. 1352x1014)");
   app.add_option("--repeats", a->repeats, "Timed renders")->capture_default_str();
   app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
-  app.add_option("--dataset-kind", a->kind, "auto, panoptic, dnerf, dnerf-npz, n3dv")->capture_default_str();
-  app.add_option("--timesteps", a->timesteps, "Use only the first N timesteps (0 = all present)");
+  atex::cli::AddDatasetOptions(app, &a->dataset);
   app.add_flag("--json", a->json, "Machine-readable output");
   return [a]() { return RunFps(*a); };
 }

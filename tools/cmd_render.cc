@@ -11,10 +11,10 @@
 namespace {
 
 struct RenderArgs {
-  std::string asset, data, view = "test:0", out, ground_truth, backend = "auto", kind = "auto", size;
+  std::string asset, data, view = "test:0", out, ground_truth, backend = "auto", size;
+  atex::cli::DatasetArgs dataset;
   std::vector<double> intrinsics, world_to_camera;
   double time = std::numeric_limits<double>::quiet_NaN();
-  int timesteps = 0, downscale = 1;
   bool json = false;
 };
 
@@ -24,7 +24,7 @@ int RunRender(const RenderArgs& a) {
   View view;
   std::unique_ptr<Dataset> dataset;
   if (!a.data.empty()) {
-    auto opened = cli::OpenDatasetArgs(a.data, {.kind = a.kind, .timesteps = a.timesteps, .downscale = a.downscale});
+    auto opened = cli::OpenDatasetArgs(a.data, a.dataset);
     if (!opened.ok()) return cli::Fail(cmd, opened.status());
     dataset = std::move(*opened);
     auto picked = cli::PickView(*dataset, a.view);
@@ -89,9 +89,7 @@ atex::cli::Runner SetupRender(CLI::App& app) {
   app.add_option("--intrinsics", a->intrinsics, "fx fy cx cy of an explicit camera")->expected(4);
   app.add_option("--world-to-camera", a->world_to_camera, "16 values, row-major, OpenCV axes")->expected(16);
   app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
-  app.add_option("--dataset-kind", a->kind, "auto, panoptic, dnerf, dnerf-npz, n3dv")->capture_default_str();
-  app.add_option("--timesteps", a->timesteps, "Use only the first N timesteps (0 = all present)");
-  app.add_option("--downscale", a->downscale, "Integer image downscale factor")->capture_default_str();
+  atex::cli::AddDatasetOptions(app, &a->dataset);
   app.add_flag("--json", a->json, "Machine-readable output");
   return [a]() { return RunRender(*a); };
 }

@@ -82,7 +82,7 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
 // used `entries_per_chunk` versions of each chunk type. Thread-safe.
 class EncodeCache {
  public:
-  explicit EncodeCache(int entries_per_chunk = 4);
+  explicit EncodeCache(int entries_per_chunk = 3);
   ~EncodeCache();
   EncodeCache(const EncodeCache&) = delete;
   EncodeCache& operator=(const EncodeCache&) = delete;
@@ -96,12 +96,6 @@ class EncodeCache {
 };
 // EncodeAsset through `cache` (nullptr: no cache).
 StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOptions& options, EncodeCache* cache);
-
-// The asset a reader gets from EncodeAsset(asset, options): DecodeAsset's result
-// (with statistics iff options.write_stats), computed without the entropy coding
-// (lossless, so skipped) by passing each lossy stream through the same stream
-// encoder and decoder. Bitwise equal to decoding the file. Errors: EncodeAsset's.
-StatusOr<Asset> StoredValues(const Asset& asset, const WriteOptions& options);
 
 // Decodes and checks a whole file (every structural rule, every CRC, every value;
 // the result passes ValidateAsset). Unknown non-critical chunks are skipped,

@@ -40,8 +40,8 @@ namespace atex {
 
 // The default near plane, in scene units: the 3DGS rasterizer (and 4DGaussians, whose
 // numbers the paper compares with) culls Gaussians at camera z <= 0.2. With 0.01, the
-// held-out cameras of Panoptic's dome score 10 dB lower on the same trained model
-// (BENCHMARKS.md): Gaussians that training never saw from there sit right in front of them.
+// held-out cameras of Panoptic's dome score 10-13 dB lower on the same trained model
+// (BENCHMARKS.md, stage 1; the cause, Gaussians close in front of those cameras, is not verified).
 inline constexpr float kDefaultNearPlane = 0.2f;
 
 struct RenderSettings {

@@ -1,6 +1,7 @@
 // EncodeAsset / WriteAssetFile (format_spec/atex.md §9): validate, turn each part
 // of the asset into chunk content, encode the chunks (independently, so in
 // parallel when OpenMP is there; the bytes do not depend on it), lay them out.
+#include <array>
 #include <cstring>
 #include <functional>
 #include <list>

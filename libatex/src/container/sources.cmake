@@ -10,7 +10,6 @@ list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/half.cc
   ${CMAKE_CURRENT_LIST_DIR}/inspect.cc
   ${CMAKE_CURRENT_LIST_DIR}/layout.cc
-  ${CMAKE_CURRENT_LIST_DIR}/stored_values.cc
   ${CMAKE_CURRENT_LIST_DIR}/synthetic_asset.cc)
 function(atex_container_tests)
   set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})

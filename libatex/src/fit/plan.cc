@@ -220,14 +220,14 @@ struct Measured {
   double distortion = 0;
 };
 
-// Encodes (exact bytes; unchanged chunks come from the cache), takes the values a
-// reader gets (StoredValues: bitwise the decoded file) and renders the probes.
+// Encodes (exact bytes; unchanged chunks come from the cache), decodes (exact stored
+// values) and renders the probes.
 StatusOr<Measured> Measure(const State& state, ProbeRenderer* renderer, const std::vector<Image>& reference,
                            EncodeCache* cache, Asset* decoded_out = nullptr) {
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(state.asset, state.write, cache));
-  WriteOptions values_of = state.write;
-  values_of.write_stats = false;  // the renders do not need them
-  ATEX_ASSIGN_OR_RETURN(Asset decoded, StoredValues(state.asset, values_of));
+  ReadOptions read;
+  read.read_stats = false;
+  ATEX_ASSIGN_OR_RETURN(Asset decoded, DecodeAsset(bytes.data(), bytes.size(), read));
   ATEX_ASSIGN_OR_RETURN(std::vector<Image> renders, renderer->Render(decoded));
   ATEX_ASSIGN_OR_RETURN(double mse, MeanSquaredError(renders, reference));
   if (decoded_out != nullptr) *decoded_out = std::move(decoded);
@@ -308,7 +308,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   std::iota(state.kept.begin(), state.kept.end(), 0u);
   // Most candidates change one or two chunks of the current state; the others are
   // compressed once, not once per candidate.
-  EncodeCache chunks(3);
+  EncodeCache chunks;
   ATEX_ASSIGN_OR_RETURN(Measured current, Measure(state, renderer, reference, &chunks));
   plan.initial_bytes = current.bytes;
   plan.initial_distortion = current.distortion;
@@ -490,7 +490,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
   std::iota(state.kept.begin(), state.kept.end(), 0u);
   Fitted out;
   // The searches below encode many states that differ from each other in a few chunks.
-  EncodeCache cache(3);
+  EncodeCache cache;
   const auto encode = [&cache](const State& s) { return EncodeAsset(s.asset, s.write, &cache); };
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, encode(state));
   if (bytes.size() > budget_bytes) {
