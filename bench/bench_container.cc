@@ -13,7 +13,7 @@
 #include <string>
 
 #include "atex/container.h"
-#include "bench_configs.h"
+#include "bench_models.h"
 
 namespace {
 

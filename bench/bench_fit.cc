@@ -13,7 +13,7 @@
 #include "atex/container.h"
 #include "atex/fit.h"
 #include "atex/train/trainer.h"
-#include "bench_configs.h"
+#include "bench_models.h"
 
 namespace {
 
