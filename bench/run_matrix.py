@@ -3,7 +3,7 @@
 
     python3 bench/run_matrix.py CONFIG.json [--atex PATH] [--out DIR] [--dry-run] [--list]
                                 [--only REGEX] [--time-limit S] [--stage1-time-limit S] [--stage2-time-limit S]
-                                [--deadline S] [--retry-failed] [--skip-fps]
+                                [--deadline S] [--retry-failed] [--skip-fps] [--gpus LIST]
 
 Python 3 standard library only (the GPU machine has no matplotlib); run it from the
 repository root (relative dataset paths are resolved against the working directory).
@@ -24,6 +24,17 @@ Resumable: a cell whose row exists in results.jsonl is skipped (failed rows too,
 or the whole process killed) resumes from its checkpoint folder (--checkpoint-dir/--resume).
 A failing step (non-zero exit, unreadable JSON, NaN metric, PSNR below the floor, no
 Gaussians left) gives a failure row with its cause; the matrix always goes on.
+
+Several GPUs (--gpus 0,1,2,3): one worker thread per listed device runs whole cells; every atex
+command it starts sees CUDA_VISIBLE_DEVICES=<device> (replacing an inherited one: LIST holds the
+machine's device indices) and OMP_NUM_THREADS=<cpus / number of devices> (unless OMP_NUM_THREADS is
+set already). Models are still trained once: a worker takes the first
+pending cell none of whose missing models (stage 1, the method's stage 2, a budget_of method's model)
+another worker is training right now, and waits when there is none. Rows get a "gpu" field. While a
+worker runs a cell it holds an exclusive flock on ${TMPDIR:-/tmp}/atex_run_matrix_gpu<N>.lock, so
+run_matrix processes started with overlapping --gpus lists (e.g. two configs at once) take turns on
+a GPU, cell by cell, and never share it. Without --gpus, cells run one after another and atex gets
+the environment unchanged; --dry-run and --list ignore --gpus.
 
 Exit status: 0 the matrix is complete (failure rows included), 3 stopped at --deadline
 (rerun the same command to continue), 2 bad config or command line.
@@ -58,6 +69,7 @@ Config (JSON; see bench/configs/*.json):
 import argparse
 import csv
 import datetime
+import fcntl
 import io
 import json
 import math
@@ -68,6 +80,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 EXIT_COMPLETE = 0
@@ -253,7 +266,7 @@ def cells(cfg):
 
 def write_atomic(path, text):
     os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
-    tmp = "%s.tmp-%d" % (path, os.getpid())
+    tmp = "%s.tmp-%d-%d" % (path, os.getpid(), threading.get_ident())  # unique per worker thread too
     with open(tmp, "w") as f:
         f.write(text)
     os.replace(tmp, path)
@@ -268,16 +281,34 @@ def tail(path, lines=6):
     return " | ".join(text[-lines:])
 
 
+def in_worker_thread():
+    return threading.current_thread() is not threading.main_thread()
+
+
 class Runner:
+    """Runs atex commands, from the main thread or from several GPU worker threads at once."""
+
     def __init__(self, args, cfg):
         self.atex = args.atex
         self.dry_run = args.dry_run
         self.deadline = time.monotonic() + args.deadline if args.deadline else None
         self.timeout = cfg["command_timeout"] or None
         self.log_path = None if args.dry_run else os.path.join(args.out, "commands.log")
+        self.local = threading.local()  # .env: the environment of this thread's commands (None: inherit)
+        self.lock = threading.Lock()  # guards procs, stopping and commands.log
+        self.procs = set()  # the running commands, so that a stop (SIGTERM, Ctrl-C) reaches all of them
+        self.stopping = threading.Event()  # set by stop_all: no new commands, running ones are Interrupted
+
+    def use_env(self, env):
+        """The environment of the commands that the calling thread runs from now on (a GPU worker's)."""
+        self.local.env = env
 
     def remaining(self):
         return None if self.deadline is None else self.deadline - time.monotonic()
+
+    def expired(self):
+        remaining = self.remaining()
+        return remaining is not None and remaining <= 0
 
     def run(self, step, argv, stdout_path=None, stderr_path=None):
         """Runs atex with `argv`; returns (parsed JSON of stdout or None, wall seconds)."""
@@ -297,11 +328,7 @@ class Runner:
         out_tmp = stdout_path + ".partial" if stdout_path else None
         start = time.monotonic()
         with open(out_tmp or os.devnull, "w") as out, open(stderr_path or os.devnull, "w") as err:
-            try:
-                # Same process group as the harness: whatever stops the harness's group stops atex too.
-                proc = subprocess.Popen(cmd, stdout=out, stderr=err)
-            except OSError as e:
-                raise StepFailed(step, "cannot run %s: %s" % (self.atex, e))
+            proc = self._start(step, cmd, out, err)
             try:
                 rc = proc.wait(timeout=limit)
             except subprocess.TimeoutExpired:
@@ -316,7 +343,13 @@ class Runner:
                 seconds = time.monotonic() - start
                 self._log(cmd, "interrupted", seconds)
                 raise Interrupted(seconds)
+            finally:
+                with self.lock:
+                    self.procs.discard(proc)
         seconds = time.monotonic() - start
+        if rc != 0 and self._stopped_by_us(rc):
+            self._log(cmd, "interrupted", seconds)
+            raise Interrupted(seconds)
         self._log(cmd, rc, seconds)
         if rc != 0:
             reason = "exit status %d" % rc if rc > 0 else "killed by signal %d" % -rc
@@ -333,6 +366,45 @@ class Runner:
             os.replace(out_tmp, stdout_path)
         return data, seconds
 
+    def _start(self, step, cmd, out, err):
+        # Checked and registered under the lock, so that stop_all cannot miss a command starting now.
+        with self.lock:
+            if self.stopping.is_set():
+                raise Interrupted()
+            try:
+                # Same process group as the harness: whatever stops the harness's group stops atex too.
+                proc = subprocess.Popen(cmd, stdout=out, stderr=err, env=getattr(self.local, "env", None))
+            except OSError as e:
+                raise StepFailed(step, "cannot run %s: %s" % (self.atex, e))
+            self.procs.add(proc)
+            return proc
+
+    def _stopped_by_us(self, rc):
+        """Whether a failed command was stopped by stop_all (its cell gets no row) rather than failing."""
+        if self.stopping.is_set():
+            return True
+        # Ctrl-C reaches the whole process group: atex (no signal handlers of its own) may die of SIGINT
+        # before the main thread (the only one Python signals) has called stop_all. Give it a moment
+        # rather than writing a failure row.
+        if in_worker_thread() and rc in (-signal.SIGINT, -signal.SIGTERM):
+            return self.stopping.wait(2.0)
+        return False
+
+    def stop_all(self, kill=False):
+        """Terminates (kill: kills) every running command and refuses new ones; the workers' run()
+        calls raise Interrupted. Used by the main thread on SIGTERM / Ctrl-C with --gpus."""
+        with self.lock:
+            self.stopping.set()
+            procs = list(self.procs)
+        for proc in procs:
+            try:
+                if kill:
+                    proc.kill()
+                else:
+                    proc.terminate()
+            except OSError:  # exited meanwhile
+                pass
+
     @staticmethod
     def _stop(proc):
         proc.terminate()
@@ -344,7 +416,7 @@ class Runner:
 
     def _log(self, cmd, rc, seconds):
         if self.log_path:
-            with open(self.log_path, "a") as f:
+            with self.lock, open(self.log_path, "a") as f:
                 f.write("%s rc=%s %.1fs %s\n" % (datetime.datetime.now().isoformat(timespec="seconds"), rc, seconds,
                                                  " ".join(shlex.quote(c) for c in cmd)))
 
@@ -372,6 +444,10 @@ class Matrix:
         self.run = Runner(args, cfg)
         self.memo_fail = {}  # artefact path -> StepFailed (no retry within one invocation)
         self.planned = set()  # --dry-run: models whose training was printed already
+        self.lock = threading.Lock()  # guards memo_fail, planned and the attempts files (GPU workers)
+        # Called with a model's base path when its training ended (ok, failed or interrupted): the
+        # GPU scheduler lets other workers use (or fail on) that model from then on.
+        self.model_done = lambda base: None
 
     # ---- artefacts ------------------------------------------------------------------
     def model_dir(self, cell):
@@ -382,17 +458,42 @@ class Matrix:
         v = self.cfg["variants"][cell["variant"]]
         return ["--data", expand_env(d["path"])] + d["args"] + (v["eval_args"] if for_eval else v["args"])
 
+    def model_base(self, cell, stage_name):
+        """A trained model's path without extension (.atex, .train.json, .attempts.json, .ckpt, .log)."""
+        return os.path.join(self.model_dir(cell), stage_name)
+
+    @staticmethod
+    def model_ready(base):
+        """Whether the model was trained completely (the same test as trained()'s reuse)."""
+        return os.path.exists(base + ".atex") and read_json(base + ".train.json") is not None
+
+    def artefacts(self, cell):
+        """The base paths of the models that run_cell(cell) trains or reuses: the stage-1 model, the
+        method's stage-2 model, and for a budget_of budget the referenced method's model (the same
+        choices as stage1 / method_model / fitted make)."""
+        methods = self.cfg["methods"]
+        needed = [self.model_base(cell, "stage1")]
+        if methods[cell["method"]]["stage2"]:
+            needed.append(self.model_base(cell, cell["method"]))
+        b = cell["budget"]
+        if b["kind"] == "budget" and "budget_mib" not in b and methods[b["budget_of"]]["stage2"]:
+            ref = self.model_base(cell, b["budget_of"])
+            if ref not in needed:
+                needed.append(ref)
+        return needed
+
     def trained(self, cell, stage_name, argv, stage_cfg):
         """Trains (or reuses) one model; returns (path, train JSON, its attempts [{seconds, resumed, result}])."""
-        base = os.path.join(self.model_dir(cell), stage_name)
+        base = self.model_base(cell, stage_name)
         model, report = base + ".atex", base + ".train.json"
-        if base in self.memo_fail:
-            raise self.memo_fail[base]
-        if self.args.dry_run:
-            if base in self.planned:
-                print("  # reuses %s" % model)
-                return model, None, []
-            self.planned.add(base)
+        with self.lock:
+            if base in self.memo_fail:
+                raise self.memo_fail[base]
+            if self.args.dry_run:
+                if base in self.planned:
+                    print("  # reuses %s" % model)
+                    return model, None, []
+                self.planned.add(base)
         attempts_path = base + ".attempts.json"
         attempts = read_json(attempts_path) or []
         if not self.args.dry_run and os.path.exists(model) and read_json(report) is not None:
@@ -409,23 +510,27 @@ class Matrix:
             argv += ["--resume", ckpt]
         try:
             data, seconds = self.run.run("train " + stage_name, ["train"] + argv, report, base + ".log")
+            if self.args.dry_run:
+                return model, None, []
+            self.attempt(attempts_path, attempts, seconds, resumed, "ok")
+            shutil.rmtree(ckpt, ignore_errors=True)  # the model is complete: its checkpoint is no longer needed
+            return model, data, attempts
         except Interrupted as e:
             self.attempt(attempts_path, attempts, e.seconds, resumed, "interrupted")
             raise
         except StepFailed as e:
-            self.memo_fail[base] = e
+            with self.lock:
+                self.memo_fail[base] = e
             raise
-        if self.args.dry_run:
-            return model, None, []
-        self.attempt(attempts_path, attempts, seconds, resumed, "ok")
-        shutil.rmtree(ckpt, ignore_errors=True)  # the model is complete: its checkpoint is no longer needed
-        return model, data, attempts
+        finally:  # after the attempt and memo_fail are recorded: others may use the model (or its failure)
+            self.model_done(base)
 
     def attempt(self, path, attempts, seconds, resumed, result):
         """Training attempts (wall seconds each), so that a run resumed after --deadline is timed in full."""
         attempts.append({"seconds": round(seconds, 3), "resumed": resumed, "result": result})
         if not self.args.dry_run:
-            write_atomic(path, json.dumps(attempts, indent=1))
+            with self.lock:
+                write_atomic(path, json.dumps(attempts, indent=1))
 
     def stage1(self, cell):
         s1 = self.cfg["stage1"]
@@ -658,7 +763,8 @@ def write_csv(rows, path):
     fps_cols = sorted({k for r in rows for k in r if k.startswith("fps_") and k != "fps_native"})
     cams = sorted({c["camera"] for r in rows for c in r.get("cameras", []) if c.get("camera") is not None})
     cam_cols = ["%s_cam%d" % (m, c) for c in cams for m in ("psnr", "ssim", "dssim1", "dssim2")]
-    header = CSV_FIXED + fps_cols + cam_cols
+    gpu_col = ["gpu"] if any("gpu" in r for r in rows) else []  # only from runs with --gpus
+    header = CSV_FIXED + gpu_col + fps_cols + cam_cols
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)
@@ -682,10 +788,248 @@ def write_csv(rows, path):
     write_atomic(path, buf.getvalue())
 
 
+class Results:
+    """results.jsonl, results.csv, the per-cell progress line and the counts, behind one lock so that
+    GPU workers can record rows concurrently."""
+
+    def __init__(self, out, rows):
+        self.jsonl = os.path.join(out, "results.jsonl")
+        self.csv = os.path.join(out, "results.csv")
+        self.rows = rows  # cell id -> its last row
+        self.counts = {"ok": 0, "failed": 0, "skipped": 0}
+        self.lock = threading.Lock()
+
+    def add(self, cell, row, start, gpu=None):
+        row["cell_wall_s"] = round(time.monotonic() - start, 3)
+        row["finished"] = datetime.datetime.now().isoformat(timespec="seconds")
+        if gpu is not None:
+            row["gpu"] = str(gpu)
+        row = clean(row)
+        with self.lock:
+            with open(self.jsonl, "a") as f:
+                f.write(json.dumps(row, allow_nan=False, default=str) + "\n")
+            self.rows[cell["id"]] = row
+            write_csv(list(self.rows.values()), self.csv)
+            self.counts[row["status"]] += 1
+            what = "ok   PSNR %.3f" % row["psnr"] if row["status"] == "ok" else \
+                "FAILED at %s: %s" % (row["failed_step"], row["cause"])
+            print("%-60s %s (%.0f s)%s" % (cell["id"], what, row["cell_wall_s"],
+                                           "" if gpu is None else " [gpu %s]" % gpu), flush=True)
+
+
+# ---------------------------------------------------------------------------------------
+# Several GPUs (--gpus)
+
+def parse_gpus(text):
+    """--gpus LIST: comma-separated, distinct, non-negative device indices."""
+    items = text.split(",")
+    if not all(re.fullmatch(r"\d+", i.strip()) for i in items):
+        raise argparse.ArgumentTypeError("%r: expected device indices like 0,1,2,3" % text)
+    gpus = [int(i) for i in items]
+    if len(set(gpus)) != len(gpus):
+        raise argparse.ArgumentTypeError("%r: a device is listed twice" % text)
+    return gpus
+
+
+def gpu_env(gpu, count):
+    """The environment of a worker's atex commands: its device only, and its share of the CPU cores
+    (OpenMP would otherwise start one thread per core in every worker's process)."""
+    env = dict(os.environ, CUDA_VISIBLE_DEVICES=str(gpu))
+    if not os.environ.get("OMP_NUM_THREADS"):
+        env["OMP_NUM_THREADS"] = str(max(1, (os.cpu_count() or 1) // count))
+    return env
+
+
+class GpuLock:
+    """An exclusive flock on ${TMPDIR:-/tmp}/atex_run_matrix_gpu<N>.lock: run_matrix processes (any
+    config, any --out) started with overlapping --gpus lists never run cells on one GPU at once."""
+
+    def __init__(self, gpu):
+        self.path = os.path.join(os.environ.get("TMPDIR") or "/tmp", "atex_run_matrix_gpu%d.lock" % gpu)
+        try:  # read-only is enough for flock; an existing file may belong to another user
+            self.fd = os.open(self.path, os.O_RDONLY)
+        except FileNotFoundError:
+            self.fd = os.open(self.path, os.O_RDONLY | os.O_CREAT, 0o666)
+
+    def acquire(self, give_up):
+        """Polls (non-blocking, so that a stop or the deadline is noticed) until the lock is ours
+        (True) or give_up() says to stop waiting (False)."""
+        while True:
+            try:
+                fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                return True
+            except BlockingIOError:
+                if give_up():
+                    return False
+                time.sleep(0.1)
+
+    def release(self):
+        fcntl.flock(self.fd, fcntl.LOCK_UN)
+
+    def close(self):
+        os.close(self.fd)
+
+
+class Scheduler:
+    """Hands the pending cells to the GPU workers, in cell order, so that no model is trained by two
+    workers at once: a cell is taken only if none of its missing models is being trained by another
+    worker right now. Also the shared stop flag: after a stop nobody takes a new cell."""
+
+    def __init__(self, matrix, pending):
+        self.matrix = matrix
+        self.pending = list(pending)
+        self.training = {}  # model base path -> the GPU whose worker may train it now
+        self.stopped = False
+        self.cond = threading.Condition()
+        matrix.model_done = lambda base: self.release([base])
+
+    def give_up(self):
+        """Whether a worker should stop waiting (for its GPU lock or a cell): stopped, deadline, no work."""
+        return self.stopped or not self.pending or self.matrix.run.expired()
+
+    WAIT = "wait"
+
+    def take(self, gpu):
+        """(cell, the models its worker may train); WAIT when every pending cell needs a model that
+        another worker is training right now; None when there is nothing (more) to do."""
+        with self.cond:
+            if self.give_up():
+                return None
+            for i, cell in enumerate(self.pending):
+                # A model that failed in this run is not ready either: its cell is taken and fails fast.
+                todo = [b for b in self.matrix.artefacts(cell) if not self.matrix.model_ready(b)]
+                if not any(b in self.training for b in todo):
+                    del self.pending[i]
+                    self.training.update(dict.fromkeys(todo, gpu))
+                    return cell, todo
+            return self.WAIT
+
+    def wait_for_change(self, seconds=0.5):
+        """Waits until a model is released or a stop (or `seconds`: the deadline passes without a notify)."""
+        with self.cond:
+            if not self.give_up():
+                self.cond.wait(timeout=seconds)
+
+    def release(self, bases):
+        with self.cond:
+            for b in bases:
+                self.training.pop(b, None)
+            self.cond.notify_all()
+
+    def stop(self):
+        with self.cond:
+            self.stopped = True
+            self.cond.notify_all()
+
+
+def gpu_worker(gpu, matrix, scheduler, results, env):
+    """One GPU's thread: takes the GPU's lock, then a cell, runs it, writes its row, releases the lock."""
+    matrix.run.use_env(env)
+    lock = GpuLock(gpu)
+    try:
+        while lock.acquire(scheduler.give_up):
+            taken = None
+            try:
+                taken = scheduler.take(gpu)
+                if taken is None:
+                    return
+                if taken is not Scheduler.WAIT:
+                    cell, todo = taken
+                    start = time.monotonic()
+                    try:
+                        row = matrix.run_cell(cell)
+                    except Interrupted:
+                        # The deadline or a signal: no row, and no new cell for any worker. The others'
+                        # running commands go on until the deadline (or stop_all) stops them too.
+                        scheduler.stop()
+                        print("run_matrix: stopped (deadline or signal) during %s [gpu %d]; rerun the same "
+                              "command to continue" % (cell["id"], gpu), file=sys.stderr, flush=True)
+                        return
+                    finally:
+                        scheduler.release(todo)  # the models it did not get to (e.g. after a stage-1 failure)
+                    results.add(cell, row, start, gpu)
+            finally:
+                lock.release()
+            if taken is Scheduler.WAIT:
+                # Waits without the GPU's lock, so that another process (another config) can use the GPU
+                # while this one's cells wait for a model that another of its workers is training.
+                scheduler.wait_for_change()
+    finally:
+        lock.close()
+
+
+def wait_threads(threads, seconds, give_up=lambda: False):
+    """Waits up to `seconds` for the threads to end (polling, so that give_up() is noticed)."""
+    end = time.monotonic() + seconds
+    while any(t.is_alive() for t in threads) and time.monotonic() < end and not give_up():
+        time.sleep(0.1)
+
+
+def run_parallel(matrix, pending, gpus, results):
+    """Runs the pending cells on one worker thread per GPU; returns whether the matrix is incomplete.
+
+    Python delivers signals to the main thread only, so it handles SIGTERM / Ctrl-C for all workers:
+    it stops every running command (Runner.stop_all; the workers' run() calls raise Interrupted) and
+    waits for the workers. Its handlers only record the signal: a KeyboardInterrupt raised inside
+    Thread.join() can mark a live thread as finished (CPython 3.11's _wait_for_tstate_lock), and the
+    harness would exit under a worker that is still writing its attempt record."""
+    scheduler = Scheduler(matrix, pending)
+    errors = []
+    signals = []
+
+    def work(gpu):
+        try:
+            gpu_worker(gpu, matrix, scheduler, results, gpu_env(gpu, len(gpus)))
+        except BaseException as e:  # a bug or an I/O error: no new cells (the others finish theirs), then
+            # the main thread raises it
+            errors.append(e)
+            scheduler.stop()
+
+    def on_signal(signum, frame):
+        signals.append(signum)
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(signum) is not signal.SIG_IGN:  # an ignored SIGINT (a background job) stays so
+            signal.signal(signum, on_signal)
+    threads = [threading.Thread(target=work, args=(gpu,), name="gpu%d" % gpu, daemon=True) for gpu in gpus]
+    for t in threads:
+        t.start()
+    wait_threads(threads, float("inf"), give_up=lambda: bool(signals))
+    if signals:
+        print("run_matrix: stopping every GPU's command", file=sys.stderr, flush=True)
+        scheduler.stop()
+        matrix.run.stop_all()
+        # As Runner._stop: SIGTERM, then SIGKILL after a grace period (none after a second signal).
+        wait_threads(threads, 10, give_up=lambda: len(signals) > 1)
+        matrix.run.stop_all(kill=True)
+    for t in threads:
+        t.join()
+    if errors:
+        raise errors[0]
+    if scheduler.pending and not scheduler.stopped:  # the deadline passed while workers waited
+        print("run_matrix: stopped (deadline) before %d cell(s); rerun the same command to continue" %
+              len(scheduler.pending), file=sys.stderr)
+    return scheduler.stopped or bool(scheduler.pending)
+
+
+def run_sequential(matrix, pending, results):
+    """Runs the pending cells one after another; returns whether the matrix is incomplete."""
+    for c in pending:
+        start = time.monotonic()
+        try:
+            row = matrix.run_cell(c)
+        except (Interrupted, KeyboardInterrupt):
+            print("run_matrix: stopped (deadline or signal) during %s; rerun the same command to continue" % c["id"],
+                  file=sys.stderr)
+            return True
+        results.add(c, row, start)
+    return False
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter,
-                                epilog="See the module docstring (head -60 bench/run_matrix.py) for the config format.")
+                                epilog="See the module docstring (head -70 bench/run_matrix.py) for the config format.")
     p.add_argument("config", help="JSON experiment config (bench/configs/*.json)")
     p.add_argument("--atex", default=None, help="the atex binary (default: $ATEX, else build/bin/atex)")
     p.add_argument("--out", default=None, help="results folder (default: out/<config name>, which git ignores)")
@@ -704,6 +1048,13 @@ def main(argv=None):
     p.add_argument("--retry-failed", action="store_true", help="run cells whose row is a failure again")
     p.add_argument("--skip-fps", action="store_true",
                    help="no `atex fps` (rows get no FPS columns), e.g. while another job shares the GPU")
+    p.add_argument("--gpus", type=parse_gpus, default=None, metavar="LIST",
+                   help="run cells in parallel, one worker per listed device (e.g. 0,1,2,3): its atex commands get "
+                        "CUDA_VISIBLE_DEVICES=<device> and OMP_NUM_THREADS=cpus/devices (unless set); every model "
+                        "is still trained once; rows get a 'gpu' field. A worker running a cell holds "
+                        "${TMPDIR:-/tmp}/atex_run_matrix_gpu<N>.lock (flock), so runs with overlapping lists take "
+                        "turns on a GPU. Default: one cell after another, environment unchanged. "
+                        "--dry-run and --list ignore it")
     args = p.parse_args(argv)
     try:
         cfg = load_config(args.config)
@@ -716,8 +1067,7 @@ def main(argv=None):
         return EXIT_USAGE
     args.atex = args.atex or os.environ.get("ATEX") or os.path.join("build", "bin", "atex")
     args.out = args.out or os.path.join("out", cfg["name"])
-    results = os.path.join(args.out, "results.jsonl")
-    rows = load_rows(results)
+    rows = load_rows(os.path.join(args.out, "results.jsonl"))
 
     if args.list:
         for c in selected:
@@ -733,40 +1083,27 @@ def main(argv=None):
         raise KeyboardInterrupt()
     signal.signal(signal.SIGTERM, on_sigterm)
     matrix = Matrix(args, cfg)
-    counts = {"ok": 0, "failed": 0, "skipped": 0}
-    interrupted = False
+    results = Results(args.out, rows)
+    pending = []
     for c in selected:
         old = rows.get(c["id"])
         if old and (old.get("status") == "ok" or not args.retry_failed):
-            counts["skipped"] += 1
+            results.counts["skipped"] += 1
             if args.dry_run:
                 print("# %s: has a row (%s), skipped" % (c["id"], old.get("status")))
             continue
         if args.dry_run:
             print("# cell %s" % c["id"])
-        start = time.monotonic()
-        try:
-            row = matrix.run_cell(c)
-        except (Interrupted, KeyboardInterrupt):
-            interrupted = True
-            print("run_matrix: stopped (deadline or signal) during %s; rerun the same command to continue" % c["id"],
-                  file=sys.stderr)
-            break
-        if args.dry_run:
+            matrix.run_cell(c)
             continue
-        row["cell_wall_s"] = round(time.monotonic() - start, 3)
-        row["finished"] = datetime.datetime.now().isoformat(timespec="seconds")
-        row = clean(row)
-        with open(results, "a") as f:
-            f.write(json.dumps(row, allow_nan=False, default=str) + "\n")
-        rows[c["id"]] = row
-        write_csv(list(rows.values()), os.path.join(args.out, "results.csv"))
-        counts[row["status"]] += 1
-        what = "ok   PSNR %.3f" % row["psnr"] if row["status"] == "ok" else \
-            "FAILED at %s: %s" % (row["failed_step"], row["cause"])
-        print("%-60s %s (%.0f s)" % (c["id"], what, row["cell_wall_s"]), flush=True)
+        pending.append(c)
     if args.dry_run:
         return EXIT_COMPLETE
+    if args.gpus:
+        interrupted = run_parallel(matrix, pending, args.gpus, results)
+    else:
+        interrupted = run_sequential(matrix, pending, results)
+    counts = results.counts
     if rows:
         write_csv(list(rows.values()), os.path.join(args.out, "results.csv"))
     print("run_matrix: %d ok, %d failed, %d skipped (had rows)%s; results in %s" %

@@ -9,6 +9,10 @@ Environment (all optional):
   FAKE_ATEX_FAIL   regex over the joined arguments: matching calls fail (exit 1, message on stderr)
   FAKE_ATEX_NAN    regex: matching eval calls report a null (NaN) PSNR
   FAKE_ATEX_SLEEP  "REGEX:SECONDS": matching calls sleep first (after writing a checkpoint for train)
+  FAKE_ATEX_EVENTS append a JSON object per line when a call starts ({"phase": "start", "pid", "time"
+                   (time.time()), "args", "gpu": $CUDA_VISIBLE_DEVICES, "omp": $OMP_NUM_THREADS,
+                   "init_exists": whether train's --init file exists}) and when it returns
+                   ({"phase": "end", "pid", "time", "rc"}); a killed call has no end event
 """
 import json
 import os
@@ -32,12 +36,28 @@ def read_model(path):
         return json.loads(f.read())
 
 
+def event(**fields):
+    """One line per write (O_APPEND): concurrent fakes, even of two harness processes, share the file."""
+    if os.environ.get("FAKE_ATEX_EVENTS"):
+        with open(os.environ["FAKE_ATEX_EVENTS"], "a") as f:
+            f.write(json.dumps(dict(fields, pid=os.getpid(), time=time.time())) + "\n")
+
+
 def main():
     args = sys.argv[1:]
-    joined = " ".join(args)
     if os.environ.get("FAKE_ATEX_LOG"):
         with open(os.environ["FAKE_ATEX_LOG"], "a") as f:
             f.write(json.dumps(args) + "\n")
+    init = opt(args, "--init")
+    event(phase="start", args=args, gpu=os.environ.get("CUDA_VISIBLE_DEVICES"), omp=os.environ.get("OMP_NUM_THREADS"),
+          init_exists=None if init is None else os.path.exists(init))
+    rc = answer(args)
+    event(phase="end", rc=rc)
+    return rc
+
+
+def answer(args):
+    joined = " ".join(args)
     if os.environ.get("FAKE_ATEX_FAIL") and re.search(os.environ["FAKE_ATEX_FAIL"], joined):
         print("atex %s: E15 numerical-error: injected failure" % args[0], file=sys.stderr)
         return 1

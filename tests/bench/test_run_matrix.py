@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Tests of bench/run_matrix.py and bench/paired_bootstrap.py (no GPU, no real atex):
 --dry-run on every committed config, and a small matrix run against tests/bench/fake_atex.py
-for resumability, failure rows, NaN/floor checks, --deadline + checkpoint resume, the CSV and
-the paired bootstrap.
+for resumability, failure rows, NaN/floor checks, --deadline + checkpoint resume, the CSV,
+the paired bootstrap, and --gpus (parallel workers, shared models, the per-GPU lock files,
+--deadline and SIGTERM with several workers).
 
     python3 tests/bench/test_run_matrix.py [--source-dir DIR] [--work-dir DIR] [unittest options]
 """
@@ -13,10 +14,12 @@ import json
 import os
 import re
 import shutil
+import signal
 import stat
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 
 SOURCE = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
@@ -24,9 +27,19 @@ WORK = None
 PY = sys.executable
 
 
-def run(*args, env=None, cwd=None):
+def environment(env):
+    """os.environ with `env` applied; a None value removes the variable."""
     e = dict(os.environ)
-    e.update(env or {})
+    for k, v in (env or {}).items():
+        if v is None:
+            e.pop(k, None)
+        else:
+            e[k] = v
+    return e
+
+
+def run(*args, env=None, cwd=None):
+    e = environment(env)
     p = subprocess.run([PY] + [str(a) for a in args], capture_output=True, text=True, env=e, cwd=cwd)
     return p.returncode, p.stdout, p.stderr
 
@@ -35,6 +48,7 @@ class Base(unittest.TestCase):
     def setUp(self):
         self.dir = tempfile.mkdtemp(prefix="run_matrix_", dir=WORK)
         self.log = os.path.join(self.dir, "fake.log")
+        self.events_path = os.path.join(self.dir, "fake.events")
         self.atex = os.path.join(self.dir, "atex")
         with open(self.atex, "w") as f:  # an executable wrapper (committed files may lose their mode bits)
             f.write('#!/bin/sh\nexec "%s" "%s" "$@"\n' % (PY, os.path.join(SOURCE, "tests", "bench", "fake_atex.py")))
@@ -65,15 +79,22 @@ class Base(unittest.TestCase):
         with open(self.config, "w") as f:
             json.dump(cfg, f)
 
-    def matrix(self, *extra, env=None):
-        e = {"FAKE_ATEX_LOG": self.log}
+    def matrix_env(self, env=None):
+        # TMPDIR: the --gpus lock files of the tests stay in the test's folder (no clash with real runs).
+        e = {"FAKE_ATEX_LOG": self.log, "FAKE_ATEX_EVENTS": self.events_path, "TMPDIR": self.dir}
         e.update(env or {})
-        return run(os.path.join(SOURCE, "bench", "run_matrix.py"), self.config, "--atex", self.atex, "--out", self.out,
-                   *extra, env=e)
+        return e
 
-    def rows(self):
+    def matrix_argv(self, *extra, out=None):
+        return [os.path.join(SOURCE, "bench", "run_matrix.py"), self.config, "--atex", self.atex,
+                "--out", out or self.out] + [str(a) for a in extra]
+
+    def matrix(self, *extra, env=None):
+        return run(*self.matrix_argv(*extra), env=self.matrix_env(env))
+
+    def rows(self, out=None):
         rows = {}
-        with open(os.path.join(self.out, "results.jsonl")) as f:
+        with open(os.path.join(out or self.out, "results.jsonl")) as f:
             for line in f:
                 r = json.loads(line)
                 rows[r["cell"]] = r
@@ -85,6 +106,21 @@ class Base(unittest.TestCase):
         with open(self.log) as f:
             calls = [json.loads(l) for l in f]
         return [c for c in calls if prefix is None or c[0] == prefix]
+
+    def commands(self, prefix=None):
+        """The fake's invocations from its event file: {args, gpu, omp, init_exists, start, end (None:
+        killed), rc}, in start order."""
+        by_pid = {}
+        if os.path.exists(self.events_path):
+            with open(self.events_path) as f:
+                for line in f:
+                    e = json.loads(line)
+                    if e["phase"] == "start":
+                        by_pid[e["pid"]] = dict(e, start=e["time"], end=None, rc=None)
+                    else:
+                        by_pid[e["pid"]].update(end=e["time"], rc=e["rc"])
+        cmds = sorted(by_pid.values(), key=lambda c: c["start"])
+        return [c for c in cmds if prefix is None or c["args"][0] == prefix]
 
 
 class DryRun(Base):
@@ -153,6 +189,10 @@ class Matrix(Base):
         # Every stage-2 run starts from the same stage-1 model.
         self.assertEqual(len({c[c.index("--init") + 1] for c in self.calls("train") if "--init" in c}), 1)
         r = rows["scene/full/s6666/adaptive/full"]
+        # Without --gpus: no gpu field, and atex gets the harness's environment unchanged.
+        self.assertNotIn("gpu", r)
+        self.assertEqual({(c["gpu"], c["omp"]) for c in self.commands()},
+                         {(os.environ.get("CUDA_VISIBLE_DEVICES"), os.environ.get("OMP_NUM_THREADS"))})
         self.assertAlmostEqual(r["psnr"], sum(v[2] for v in r["views"]) / len(r["views"]))
         self.assertEqual(len(r["views"]), 6)
         self.assertEqual(len(r["cameras"]), 2)
@@ -270,6 +310,215 @@ class Matrix(Base):
         rc, stdout, _ = run(args[0], args[1], "--baseline", "uniform", "--unit", "camera", "--samples", "500")
         self.assertEqual(rc, 0)
         self.assertIn("(camera)", stdout)
+
+
+def stage(cmd):
+    return cmd["args"][cmd["args"].index("--stage") + 1]
+
+
+def overlap(a, b):
+    """Whether two finished commands ran at the same time (by the fake's wall-clock stamps)."""
+    return max(a["start"], b["start"]) < min(a["end"], b["end"])
+
+
+def alive(pid):
+    """Whether a process exists and is not a zombie (a killed fake may wait to be reaped by init)."""
+    try:
+        with open("/proc/%d/stat" % pid) as f:
+            return f.read().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+    except FileNotFoundError:
+        return False
+    except OSError:  # no /proc: ask the kernel
+        try:
+            os.kill(pid, 0)
+            return True
+        except ProcessLookupError:
+            return False
+
+
+class Gpus(Base):
+    """--gpus: one worker per device; 2 variants x 2 methods = 2 independent stage-1 models, each
+    needed by 2 cells (none: the stage-1 model itself; uniform: its stage 2 from it)."""
+    CELLS = ["scene/%s/s6666/%s/full" % (v, m) for v in ("va", "vb") for m in ("none", "uniform")]
+
+    def setUp(self):
+        super().setUp()
+        self.write_gpu_config()
+
+    def write_gpu_config(self, budgets=("full",)):
+        self.write_config(variants={"va": {"args": ["--timestep-stride", "1"]},
+                                    "vb": {"args": ["--timestep-stride", "2"]}},
+                          methods={"none": {"stage2": False}, "uniform": {"textures": "uniform"}},
+                          budgets=list(budgets), fps={"sizes": ["native"], "repeats": 3})
+
+    def with_b50(self):
+        """b50 cells need the uniform model too: each stage-2 model is then shared by 3 cells
+        (uniform/full, none/b50, uniform/b50) that two workers could take at the same time."""
+        self.write_gpu_config(["full", {"name": "b50", "budget_of": "uniform", "fraction": 0.5}])
+        return self.CELLS + [c.replace("/full", "/b50") for c in self.CELLS]
+
+    def assert_no_overlap_per_gpu(self, cmds):
+        for gpu in {c["gpu"] for c in cmds}:
+            on_gpu = [c for c in cmds if c["gpu"] == gpu and c["end"] is not None]
+            for a, b in zip(on_gpu, on_gpu[1:]):
+                self.assertGreaterEqual(b["start"], a["end"], "two commands at once on GPU %s: %s / %s" %
+                                        (gpu, a["args"][:2], b["args"][:2]))
+
+    def test_models_are_trained_once_and_every_gpu_is_used(self):
+        cells = self.with_b50()
+        rc, stdout, stderr = self.matrix("--gpus", "0,1",
+                                         env={"FAKE_ATEX_SLEEP": "^train:0.3", "OMP_NUM_THREADS": None})
+        self.assertEqual(rc, 0, stdout + stderr)
+        rows = self.rows()
+        self.assertEqual(sorted(rows), sorted(cells))
+        self.assertTrue(all(r["status"] == "ok" for r in rows.values()), rows)
+        self.assertEqual({r["gpu"] for r in rows.values()}, {"0", "1"})
+        self.assertEqual(stdout.count("[gpu "), 8, stdout)
+        cmds = self.commands()
+        self.assertTrue(all(c["end"] is not None and c["rc"] == 0 for c in cmds))
+        self.assertEqual({c["gpu"] for c in cmds}, {"0", "1"})
+        self.assertEqual({c["omp"] for c in cmds}, {str(max(1, os.cpu_count() // 2))})
+        trains = self.commands("train")
+        s1 = {c["args"][c["args"].index("--out") + 1]: c for c in trains if stage(c) == "1"}
+        self.assertEqual(len([c for c in trains if stage(c) == "1"]), 2, "each stage-1 model trained once")
+        self.assertEqual(len(s1), 2, "one stage-1 model per variant")
+        s2 = [c for c in trains if stage(c) == "2"]
+        self.assertEqual(len(s2), 2, "each stage-2 model trained once")
+        for c in s2:  # started from its own variant's stage-1 model, after that model was written
+            init = c["args"][c["args"].index("--init") + 1]
+            self.assertIn(init, s1)
+            self.assertTrue(c["init_exists"])
+            self.assertGreaterEqual(c["start"], s1[init]["end"])
+        self.assert_no_overlap_per_gpu(cmds)
+        with open(os.path.join(self.out, "results.csv")) as f:
+            self.assertEqual({r["gpu"] for r in csv.DictReader(f)}, {"0", "1"})
+
+    def test_a_failed_model_fails_its_cells_and_is_trained_once(self):
+        cells = self.with_b50()
+        rc, stdout, stderr = self.matrix("--gpus", "0,1", env={"FAKE_ATEX_FAIL": "--textures uniform"})
+        self.assertEqual(rc, 0, stdout + stderr)
+        rows = self.rows()
+        self.assertEqual(sorted(rows), sorted(cells))
+        for cell, r in rows.items():
+            self.assertEqual(r["status"], "ok" if cell.endswith("none/full") else "failed", cell)
+            if r["status"] == "failed":
+                self.assertEqual(r["failed_step"], "train uniform")
+        self.assertEqual(len([c for c in self.calls("train") if "uniform" in c]), 2, "once per variant")
+
+    def test_cells_run_in_parallel(self):
+        # Overlap of the recorded start/end times rather than wall time: robust on a loaded machine.
+        rc, stdout, stderr = self.matrix("--gpus", "0,1", env={"FAKE_ATEX_SLEEP": "^train:0.8"})
+        self.assertEqual(rc, 0, stdout + stderr)
+        trains = self.commands("train")
+        self.assertEqual(len(trains), 4)
+        self.assertTrue(any(overlap(a, b) for a in trains for b in trains if a["gpu"] != b["gpu"]),
+                        "no two trainings ran at once on the two GPUs")
+        self.assert_no_overlap_per_gpu(self.commands())
+
+    def test_two_processes_take_turns_on_a_gpu(self):
+        self.write_config(methods={"none": {"stage2": False}, "uniform": {"textures": "uniform"}},
+                          budgets=["full"], fps={"sizes": ["native"], "repeats": 3})
+        outs = [os.path.join(self.dir, "out%d" % i) for i in (1, 2)]
+        env = environment(self.matrix_env({"FAKE_ATEX_SLEEP": "^train:0.3"}))
+        procs = [subprocess.Popen([PY] + self.matrix_argv("--gpus", "0", out=o), env=env, stdout=subprocess.PIPE,
+                                  stderr=subprocess.STDOUT, text=True) for o in outs]
+        for p in procs:
+            output = p.communicate(timeout=60)[0]
+            self.assertEqual(p.returncode, 0, output)
+        for o in outs:
+            self.assertEqual(len(self.rows(o)), 2)
+        cmds = self.commands()
+        self.assertEqual(len(cmds), 2 * 2 * 4)  # 2 processes x (2 trainings + 2 x (eval, info, fps))
+        self.assertEqual({c["gpu"] for c in cmds}, {"0"})
+        for a, b in zip(cmds, cmds[1:]):
+            self.assertGreaterEqual(b["start"], a["end"], "two processes ran commands on GPU 0 at once")
+        self.assertTrue(os.path.exists(os.path.join(self.dir, "atex_run_matrix_gpu0.lock")))
+
+    def test_a_waiting_worker_leaves_its_gpu_to_another_process(self):
+        # Process A (--gpus 0,1): both cells need one stage-1 model, so its GPU-1 worker waits for it.
+        # Process B (--gpus 1, another config) must get GPU 1 meanwhile, not after A's stage 1.
+        self.write_config(methods={"none": {"stage2": False}, "uniform": {"textures": "uniform"}},
+                          budgets=["full"], fps={"sizes": ["native"], "repeats": 3})
+        env = environment(self.matrix_env({"FAKE_ATEX_SLEEP": "--stage 1:1.5"}))
+        a = subprocess.Popen([PY] + self.matrix_argv("--gpus", "0,1", out=os.path.join(self.dir, "outA")), env=env,
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        time.sleep(0.5)  # A's workers have started: GPU 0 trains, GPU 1 waits
+        b = subprocess.Popen([PY] + self.matrix_argv("--gpus", "1", out=os.path.join(self.dir, "outB")), env=env,
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        for p in (a, b):
+            output = p.communicate(timeout=60)[0]
+            self.assertEqual(p.returncode, 0, output)
+        cmds = self.commands()
+        a_stage1 = [c for c in cmds if c["args"][0] == "train" and stage(c) == "1" and "outA" in " ".join(c["args"])]
+        b_cmds = [c for c in cmds if "outB" in " ".join(c["args"])]
+        self.assertEqual(len(a_stage1), 1)
+        self.assertTrue(b_cmds)
+        self.assertTrue(any(overlap(a_stage1[0], c) for c in b_cmds),
+                        "process B waited for process A's stage 1 although A's GPU-1 worker had no cell")
+        self.assert_no_overlap_per_gpu(cmds)
+
+    def test_deadline_stops_every_worker_and_the_rerun_completes(self):
+        start = time.monotonic()
+        rc, stdout, stderr = self.matrix("--gpus", "0,1", "--deadline", "1.5",
+                                         env={"FAKE_ATEX_SLEEP": "--stage 1:30", "OMP_NUM_THREADS": "3"})
+        self.assertEqual(rc, 3, stdout + stderr)
+        self.assertLess(time.monotonic() - start, 20)
+        self.assertIn("rerun", stderr)
+        self.assertIn("INCOMPLETE", stdout)
+        self.assertFalse(os.path.exists(os.path.join(self.out, "results.jsonl")))
+        killed = self.commands("train")
+        self.assertEqual(len(killed), 2)
+        self.assertEqual({c["gpu"] for c in killed}, {"0", "1"})
+        self.assertEqual({c["omp"] for c in killed}, {"3"}, "a set OMP_NUM_THREADS is kept")
+        self.assertTrue(all(c["end"] is None and not alive(c["pid"]) for c in killed))
+        rc, stdout, stderr = self.matrix("--gpus", "0,1")
+        self.assertEqual(rc, 0, stdout + stderr)
+        rows = self.rows()
+        self.assertEqual(sorted(rows), sorted(self.CELLS))
+        self.assertTrue(all(r["status"] == "ok" for r in rows.values()), rows)
+        s1 = [c for c in self.commands("train") if stage(c) == "1"]
+        self.assertEqual(len(s1), 4)
+        self.assertTrue(all("--resume" in c["args"] for c in s1[2:]))
+        self.assertTrue(all(r["train_resumes_stage1"] == 1 for r in rows.values()))
+
+    def test_sigterm_stops_every_worker(self):
+        env = environment(self.matrix_env({"FAKE_ATEX_SLEEP": "--stage 1:30"}))
+        p = subprocess.Popen([PY] + self.matrix_argv("--gpus", "0,1"), env=env, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+        try:
+            give_up = time.monotonic() + 20
+            while len(self.commands("train")) < 2 and time.monotonic() < give_up and p.poll() is None:
+                time.sleep(0.05)
+            self.assertEqual(len(self.commands("train")), 2, "both stage-1 trainings should have started")
+            p.send_signal(signal.SIGTERM)
+            sent = time.monotonic()
+            stdout, stderr = p.communicate(timeout=30)
+            # Terminated at once, not after the 10 s grace that ends in SIGKILL (nor the 30 s sleep).
+            self.assertLess(time.monotonic() - sent, 8)
+        finally:
+            if p.poll() is None:
+                p.kill()
+                p.communicate()
+        self.assertEqual(p.returncode, 3, stdout + stderr)
+        self.assertIn("rerun", stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.out, "results.jsonl")))
+        self.assertTrue(all(c["end"] is None and not alive(c["pid"]) for c in self.commands("train")))
+        for variant in ("va", "vb"):
+            with open(os.path.join(self.out, "models", "scene", variant, "s6666", "stage1.attempts.json")) as f:
+                self.assertEqual([a["result"] for a in json.load(f)], ["interrupted"])
+
+    def test_bad_gpus_is_a_usage_error_and_dry_run_ignores_gpus(self):
+        for bad in ("", "a", "0,0", "-1", "0,,1", "1.5"):
+            rc, _, stderr = self.matrix("--gpus=" + bad)
+            self.assertEqual(rc, 2, "--gpus=%r: %s" % (bad, stderr))
+            self.assertIn("--gpus", stderr)
+        self.assertEqual(self.calls(), [])
+        _, plain, _ = self.matrix("--dry-run")
+        rc, with_gpus, stderr = self.matrix("--dry-run", "--gpus", "0,1")
+        self.assertEqual(rc, 0, stderr)
+        self.assertEqual(with_gpus, plain)
+        rc, listing, _ = self.matrix("--list", "--gpus", "0,1")
+        self.assertEqual((rc, len(listing.splitlines())), (0, 4))
 
 
 if __name__ == "__main__":

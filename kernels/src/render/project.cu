@@ -44,8 +44,11 @@ __global__ void ProjectKernel(detail::CameraModel<float> cam, RenderInputs in, P
   out.mean2d[2 * i + 1] = p.mean2d[1];
   if (!p.visible) return;
   out.radius[i] = p.radius;
-  out.rects[i] = make_int4(p.rect.x0, p.rect.y0, p.rect.x1, p.rect.y1);
-  out.tiles_touched[i] = static_cast<uint32_t>((p.rect.x1 - p.rect.x0) * (p.rect.y1 - p.rect.y0));
+  const float max_alpha = out.opacity[i] * (in.textured() ? float(detail::kTextureAlphaFactorBound) : 1.0f);
+  const detail::TileRect rect = detail::ContributionTileRect(p.rect, p.mean2d, p.cov2d, max_alpha, cam.tiles_x,
+                                                             cam.tiles_y);
+  out.rects[i] = make_int4(rect.x0, rect.y0, rect.x1, rect.y1);
+  out.tiles_touched[i] = static_cast<uint32_t>((rect.x1 - rect.x0) * (rect.y1 - rect.y0));
   for (int k = 0; k < 3; ++k) out.conic[3 * i + k] = p.conic[k];
   bool clamped[3];
   const Vec3<float> color =

@@ -19,7 +19,8 @@ __device__ void SplatVjpAtomic(const detail::SplatParams<float>& s, const Vec3<f
                                detail::SplatGrad<float>* g, float* g_texels /* this Gaussian's [h][w][4] */) {
   g->color += g_color;
   const bool textured = s.frame != nullptr;
-  const float factor = textured ? detail::TextureAlphaFactor(smp.texel[3]) : 1.0f;
+  const float factor =
+      !textured ? 1.0f : (s.constant != nullptr ? s.constant->alpha_factor : detail::TextureAlphaFactor(smp.texel[3]));
   Vec4<float> g_rgba{{0.f, 0.f, 0.f, 0.f}};
   if (textured) {
     for (int ch = 0; ch < 3; ++ch) g_rgba[ch] = detail::TextureColorResidualVjp(smp.texel[ch], g_color[ch]);
@@ -32,7 +33,15 @@ __device__ void SplatVjpAtomic(const detail::SplatParams<float>& s, const Vec3<f
     if (textured) g_rgba[3] = detail::TextureAlphaFactorVjp(smp.texel[3], g_alpha * base);
   }
   if (!textured) return;
-  // SampleTexelsVjp with atomics.
+  if (s.tex_h == 1 && s.tex_w == 1) {
+    // One texel: its weight is 1 and the coordinates get no gradient (EvaluateSplat).
+    for (int c = 0; c < 4; ++c) {
+      if (g_rgba[c] != 0.f) atomicAdd(&g_texels[c], g_rgba[c]);
+    }
+    return;
+  }
+  // SampleTexelsVjp with atomics; taps of zero weight (a side of 1, or a knot hit exactly)
+  // add nothing and are skipped.
   const auto& taps = smp.taps;
   const float fx = taps.x.frac, fy = taps.y.frac;
   const float w00 = (1.f - fx) * (1.f - fy), w01 = fx * (1.f - fy), w10 = (1.f - fx) * fy, w11 = fx * fy;
@@ -43,10 +52,10 @@ __device__ void SplatVjpAtomic(const detail::SplatParams<float>& s, const Vec3<f
   for (int c = 0; c < 4; ++c) {
     const float gc = g_rgba[c];
     if (gc != 0.f) {
-      atomicAdd(&g_texels[i00 + c], w00 * gc);
-      atomicAdd(&g_texels[i01 + c], w01 * gc);
-      atomicAdd(&g_texels[i10 + c], w10 * gc);
-      atomicAdd(&g_texels[i11 + c], w11 * gc);
+      if (w00 != 0.f) atomicAdd(&g_texels[i00 + c], w00 * gc);
+      if (w01 != 0.f) atomicAdd(&g_texels[i01 + c], w01 * gc);
+      if (w10 != 0.f) atomicAdd(&g_texels[i10 + c], w10 * gc);
+      if (w11 != 0.f) atomicAdd(&g_texels[i11 + c], w11 * gc);
     }
     g_fx += gc * ((1.f - fy) * (t[i01 + c] - t[i00 + c]) + fy * (t[i11 + c] - t[i10 + c]));
     g_fy += gc * ((1.f - fx) * (t[i10 + c] - t[i00 + c]) + fx * (t[i11 + c] - t[i01 + c]));
@@ -86,6 +95,9 @@ __global__ void __launch_bounds__(kBlock) RasterBackwardKernel(
   __shared__ float s_opacity[kBlock];
   __shared__ float3 s_color[kBlock];
   __shared__ detail::TextureFrame<float> s_frame[kTextured ? kBlock : 1];
+  __shared__ uint32_t s_texel_offset[kTextured ? kBlock : 1];  // as in the forward kernel
+  __shared__ uchar2 s_tex_size[kTextured ? kBlock : 1];
+  __shared__ detail::ConstantTexel<float> s_constant[kTextured ? kBlock : 1];
   __shared__ uint32_t s_max_end;
 
   const int tile = blockIdx.y * cam.tiles_x + blockIdx.x;
@@ -129,7 +141,16 @@ __global__ void __launch_bounds__(kBlock) RasterBackwardKernel(
       s_conic[threadIdx.x] = make_float3(p.conic[3 * id], p.conic[3 * id + 1], p.conic[3 * id + 2]);
       s_opacity[threadIdx.x] = p.opacity[id];
       s_color[threadIdx.x] = make_float3(p.color[3 * id], p.color[3 * id + 1], p.color[3 * id + 2]);
-      if constexpr (kTextured) s_frame[threadIdx.x] = p.frames[id];
+      if constexpr (kTextured) {
+        s_frame[threadIdx.x] = p.frames[id];
+        const uchar4 layout = reinterpret_cast<const uchar4*>(in.texture_layout)[id];
+        const uint32_t offset = in.texel_offsets[id];
+        s_texel_offset[threadIdx.x] = offset;
+        s_tex_size[threadIdx.x] = make_uchar2(layout.x, layout.y);
+        if (layout.x == 1 && layout.y == 1) {
+          s_constant[threadIdx.x] = detail::MakeConstantTexel(in.texels + size_t(offset) * 4);
+        }
+      }
     }
     __syncthreads();
     for (int j = 0; j < in_batch; ++j) {
@@ -142,12 +163,12 @@ __global__ void __launch_bounds__(kBlock) RasterBackwardKernel(
       s.color = {{s_color[j].x, s_color[j].y, s_color[j].z}};
       float* g_texels = nullptr;
       if constexpr (kTextured) {
-        const uint8_t* layout = in.texture_layout + 4 * id;
-        const size_t offset = size_t(in.texel_offsets[id]) * 4;
+        const size_t offset = size_t(s_texel_offset[j]) * 4;
         s.frame = &s_frame[j];
         s.texels = in.texels + offset;
-        s.tex_h = layout[0];
-        s.tex_w = layout[1];
+        s.tex_h = s_tex_size[j].x;
+        s.tex_w = s_tex_size[j].y;
+        s.constant = s.tex_h == 1 && s.tex_w == 1 ? &s_constant[j] : nullptr;
         g_texels = grad_texels + offset;
       } else {
         s.frame = nullptr;

@@ -154,7 +154,8 @@ struct Fitted {
 
 // Applies moves of `plan` in order until the encoded asset fits `budget_bytes`; the
 // last move, if divisible, is bisected so that as little as needed is removed; if it is
-// indivisible, the latest divisible move before it is partly undone to use the slack. Fails with
+// indivisible, divisible moves before it are undone, latest first, until one is only partly
+// undone (the budget binds) or none is left, to spend the slack again. Fails with
 // kOutOfRange when even the whole plan does not fit (the message names the smallest
 // size reached).
 StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes);

@@ -1,5 +1,8 @@
 // The budget fitter: texture shrinking, the levers, plans and budgets.
 #include <cmath>
+#include <limits>
+#include <numeric>
+#include <optional>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -198,6 +201,129 @@ TEST(Plan, SmallerBudgetsNeverReduceDistortion) {
     EXPECT_GE(mse, previous * 0.98 - 1e-9) << "budget " << budget;
     previous = std::max(previous, mse);
   }
+}
+
+// The encoded size after replaying `moves` on `asset` in order, as ApplyPlan does.
+uint64_t SizeAfter(const Asset& asset, const Plan& plan, const WriteOptions& write, const std::vector<Move>& moves) {
+  Asset a = asset;
+  WriteOptions w = write;
+  std::vector<uint32_t> kept(a.gaussians.size());
+  std::iota(kept.begin(), kept.end(), 0u);
+  for (const Move& m : moves) {
+    const Status applied = ApplyMove(m, plan.prune_order, &a, &w, &kept);
+    EXPECT_TRUE(applied.ok()) << DescribeMove(m) << ": " << applied.ToString();
+    if (!applied.ok()) return std::numeric_limits<uint64_t>::max();
+  }
+  auto bytes = EncodeAsset(a, w);
+  EXPECT_TRUE(bytes.ok()) << bytes.status().ToString();
+  return bytes.ok() ? bytes->size() : std::numeric_limits<uint64_t>::max();
+}
+
+// `moves` with the count of the latest divisible one lowered by one unit (the move dropped
+// at 0); nullopt when no move is divisible.
+std::optional<std::vector<Move>> OneUnitLessOfLatestDivisible(std::vector<Move> moves) {
+  for (size_t i = moves.size(); i-- > 0;) {
+    if (!moves[i].divisible()) continue;
+    if (--moves[i].count == 0) moves.erase(moves.begin() + static_cast<std::ptrdiff_t>(i));
+    return moves;
+  }
+  return std::nullopt;
+}
+
+TEST(Plan, SlackBelowAnIndivisibleMoveReachesEarlierDivisibleMoves) {
+  // A hand-made plan: a large prune, two small prunes, then sh_rest to q8 (indivisible, and
+  // worth far more bytes than both small prunes). With the budget between the sizes after
+  // the second small prune and after the encoding, the encoding is the last move replayed;
+  // undoing both small prunes entirely still leaves slack that only undoing part of the
+  // large prune can spend.
+  Asset asset = SmallAsset(container::SyntheticTextures::kNone, 53);
+  WriteOptions write;
+  write.write_stats = false;
+  Plan plan;
+  plan.prune_order = ImportanceOrder(asset, 6666);
+  const auto prune = [](uint64_t count) {
+    Move m;
+    m.lever = Lever::kPrune;
+    m.count = count;
+    return m;
+  };
+  Move sh_rest_q8;
+  sh_rest_q8.lever = Lever::kEncoding;
+  sh_rest_q8.stream = Stream::kShRest;
+  sh_rest_q8.encoding = ScalarEncoding::kQuant8;
+  const Move big = prune(150);
+  plan.moves = {big, prune(5), prune(5), sh_rest_q8};
+  plan.initial_bytes = SizeAfter(asset, plan, write, {});
+  for (size_t i = 0; i < plan.moves.size(); ++i) {
+    plan.moves[i].bytes_after = SizeAfter(asset, plan, write, {plan.moves.begin(), plan.moves.begin() + i + 1});
+    plan.moves[i].distortion_after = 0.01 * static_cast<double>(i + 1);  // estimates, to be kept as they are
+  }
+  // What the single-move refill gave: the last small prune undone, and nothing more.
+  const uint64_t single_refill = SizeAfter(asset, plan, write, {plan.moves[0], plan.moves[1], plan.moves[3]});
+  const uint64_t both_undone = SizeAfter(asset, plan, write, {big, sh_rest_q8});
+  const uint64_t all_undone = SizeAfter(asset, plan, write, {sh_rest_q8});
+  const uint64_t after_small = plan.moves[2].bytes_after;
+  const uint64_t budget = both_undone + (after_small - both_undone) / 2;
+  // The case is the one described above.
+  ASSERT_LT(plan.moves[3].bytes_after, single_refill);
+  ASSERT_LT(single_refill, both_undone);
+  ASSERT_LT(both_undone + 2, after_small);
+  ASSERT_LT(budget, after_small) << "the encoding is the move that crosses the budget";
+  ASSERT_LT(budget, all_undone) << "the budget binds inside the large prune";
+
+  auto fitted = ApplyPlan(asset, plan, write, budget);
+  ASSERT_TRUE(fitted.ok()) << fitted.status().ToString();
+  EXPECT_LE(fitted->bytes.size(), budget);
+  EXPECT_GT(fitted->bytes.size(), both_undone) << "the slack left by undoing the small prunes is spent";
+  // Both small prunes are gone and the large one is partly undone.
+  ASSERT_EQ(fitted->moves.size(), 2u);
+  EXPECT_EQ(fitted->moves[0].lever, Lever::kPrune);
+  EXPECT_GT(fitted->moves[0].count, 0u);
+  EXPECT_LT(fitted->moves[0].count, big.count);
+  EXPECT_EQ(fitted->moves[1].lever, Lever::kEncoding);
+  EXPECT_EQ(fitted->asset.gaussians.size(), asset.gaussians.size() - fitted->moves[0].count);
+  // No unit of slack left: one Gaussian fewer pruned would not fit.
+  auto one_less = OneUnitLessOfLatestDivisible(fitted->moves);
+  ASSERT_TRUE(one_less.has_value());
+  EXPECT_GT(SizeAfter(asset, plan, write, *one_less), budget);
+  // The recorded sizes are the real ones; the distortions stay the plan's estimates.
+  for (size_t i = 0; i < fitted->moves.size(); ++i) {
+    EXPECT_EQ(fitted->moves[i].bytes_after,
+              SizeAfter(asset, plan, write, {fitted->moves.begin(), fitted->moves.begin() + i + 1}))
+        << i;
+  }
+  EXPECT_EQ(fitted->moves.back().bytes_after, fitted->bytes.size());
+  EXPECT_EQ(fitted->moves[0].distortion_after, plan.moves[0].distortion_after);
+  EXPECT_EQ(fitted->moves[1].distortion_after, plan.moves[3].distortion_after);
+  // Valid: it decodes (a full reader pass) and validates.
+  auto decoded = DecodeAsset(fitted->bytes.data(), fitted->bytes.size());
+  ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+  EXPECT_TRUE(ValidateAsset(*decoded).ok());
+  EXPECT_EQ(fitted->kept.size(), decoded->gaussians.size());
+}
+
+TEST(Plan, NoUnitOfSlackLeftBelowAnIndivisibleLastMove) {
+  // Real plans, random budgets: whenever the fit ends on an indivisible move, one unit less
+  // of the latest divisible move applied (one Gaussian, one texture axis) would not fit.
+  int refilled = 0;
+  for (auto textures : {container::SyntheticTextures::kMixed, container::SyntheticTextures::kNone}) {
+    PlanFixture f = MakePlan(textures, 11);
+    const uint64_t lo = f.plan.moves.back().bytes_after, hi = f.plan.initial_bytes;
+    std::mt19937_64 rng(textures == container::SyntheticTextures::kNone ? 3 : 4);
+    for (int trial = 0; trial < 150; ++trial) {
+      const uint64_t budget = lo + rng() % (hi - lo);
+      auto fitted = ApplyPlan(f.asset, f.plan, f.write, budget);
+      ASSERT_TRUE(fitted.ok()) << budget << ": " << fitted.status().ToString();
+      ASSERT_LE(fitted->bytes.size(), budget);
+      if (fitted->moves.empty() || fitted->moves.back().divisible()) continue;
+      auto one_less = OneUnitLessOfLatestDivisible(fitted->moves);
+      if (!one_less) continue;
+      ++refilled;
+      EXPECT_GT(SizeAfter(f.asset, f.plan, f.write, *one_less), budget)
+          << "budget " << budget << ": " << fitted->bytes.size() << " bytes";
+    }
+  }
+  EXPECT_GE(refilled, 3) << "too few budgets end on an indivisible move to test anything";
 }
 
 TEST(Plan, BudgetBelowTheMinimumIsNamed) {

@@ -437,48 +437,78 @@ StatusOr<State> Replay(const Asset& asset, const Plan& plan, const WriteOptions&
   return s;
 }
 
-// After an indivisible last move: the smallest count of the latest divisible move that still
-// fits (its recorded count does), so that the slack below the budget is spent again.
-Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
-                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache) {
-  size_t k = moves->size();
-  for (size_t i = moves->size(); i-- > 0;) {
-    if ((*moves)[i].divisible()) {
-      k = i;
-      break;
-    }
-  }
-  if (k == moves->size()) return Status::Ok();
-  uint64_t lo = 0, hi = (*moves)[k].count;
-  std::optional<std::pair<State, std::vector<uint8_t>>> best;
+// A replayed state that fits the budget: the count it gives the bisected move, the state and
+// its encoded bytes.
+struct Refill {
+  uint64_t count = 0;
+  State state;
+  std::vector<uint8_t> bytes;
+};
+
+// The smallest count of moves[k] (the other moves as they are) whose output fits `budget`,
+// found by bisection on [0, count); the recorded count is known to fit. nullopt when no
+// smaller count fits (the whole move is needed).
+StatusOr<std::optional<Refill>> SmallestFittingCount(const Asset& asset, const Plan& plan, const WriteOptions& write,
+                                                     const std::vector<Move>& moves, size_t k, uint64_t budget,
+                                                     EncodeCache* cache) {
+  uint64_t lo = 0, hi = moves[k].count;
+  std::optional<Refill> best;
   while (lo < hi) {
     const uint64_t mid = lo + (hi - lo) / 2;
-    ATEX_ASSIGN_OR_RETURN(State trial, Replay(asset, plan, write, *moves, k, mid));
+    ATEX_ASSIGN_OR_RETURN(State trial, Replay(asset, plan, write, moves, k, mid));
     ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, EncodeAsset(trial.asset, trial.write, cache));
     if (trial_bytes.size() <= budget) {
       hi = mid;
-      best.emplace(std::move(trial), std::move(trial_bytes));
+      best = Refill{mid, std::move(trial), std::move(trial_bytes)};
     } else {
       lo = mid + 1;
     }
   }
-  if (!best || hi == (*moves)[k].count) return Status::Ok();
-  (*moves)[k].count = hi;
-  if (hi == 0) moves->erase(moves->begin() + static_cast<std::ptrdiff_t>(k));
-  // The sizes recorded for move k and later ones belong to the plan; measure the real ones.
-  // (Their distortion stays the plan's estimate: ApplyPlan does not render.)
+  return best;
+}
+
+// After an indivisible last move: gives the slack below the budget back by undoing divisible
+// moves, latest first. Each one's count is lowered to the smallest that still fits; when even
+// count 0 fits (the move is undone entirely and slack remains), the move is dropped and the next
+// earlier divisible move is tried, until one is only partly undone (the budget binds there) or
+// no divisible move is left. Every state taken was encoded and fits, so the output stays within
+// the budget.
+Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
+                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache) {
+  std::optional<size_t> earliest_changed;  // index (after any removals) of the earliest move changed
+  size_t end = moves->size();              // divisible moves are looked for before this index
+  while (true) {
+    size_t k = end;  // the latest divisible move before `end`
+    while (k > 0 && !(*moves)[k - 1].divisible()) --k;
+    if (k == 0) break;  // no divisible move left to undo
+    --k;
+    ATEX_ASSIGN_OR_RETURN(std::optional<Refill> refill,
+                          SmallestFittingCount(asset, plan, write, *moves, k, budget, cache));
+    if (!refill) break;  // move k is needed whole: the budget binds here
+    *state = std::move(refill->state);
+    *bytes = std::move(refill->bytes);
+    earliest_changed = k;
+    if (refill->count > 0) {
+      (*moves)[k].count = refill->count;
+      break;  // partly undone: the budget binds here
+    }
+    // Undone entirely and still under budget: drop it and spend the rest on an earlier move.
+    moves->erase(moves->begin() + static_cast<std::ptrdiff_t>(k));
+    end = k;
+  }
+  if (!earliest_changed) return Status::Ok();
+  // The sizes recorded for the earliest changed move and later ones belong to the plan; measure
+  // the real ones. (Their distortion stays the plan's estimate: ApplyPlan does not render.)
   State replay{asset, write, {}};
   replay.kept.resize(asset.gaussians.size());
   std::iota(replay.kept.begin(), replay.kept.end(), 0u);
   for (size_t i = 0; i < moves->size(); ++i) {
     ATEX_RETURN_IF_ERROR(ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept));
-    if (i >= k) {
+    if (i >= *earliest_changed) {
       ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> step_bytes, EncodeAsset(replay.asset, replay.write, cache));
       (*moves)[i].bytes_after = step_bytes.size();
     }
   }
-  *state = std::move(best->first);
-  *bytes = std::move(best->second);
   return Status::Ok();
 }
 
@@ -530,7 +560,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
     out.moves.push_back(last);
     if (!last.divisible()) {
       // An indivisible last move (an encoding, the SH degree, the grid) can land far below the
-      // budget; give the slack back by undoing part of the latest divisible move before it.
+      // budget; give the slack back by undoing divisible moves before it, latest first.
       ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes, &cache));
     }
   }

@@ -16,7 +16,7 @@ namespace {
 
 using namespace atex::detail;
 
-// in: [80] arbitrary values; out: [1]. Calls every forward function and its VJP.
+// in: [80] arbitrary values (16-byte aligned); out: [1]. Calls every forward function and its VJP.
 template <typename T>
 __global__ void EveryDetailFunction(const T* in, T* out, CameraModel<T> cam) {
   const Vec3<T> mean{{in[0], in[1], in[2]}};
@@ -27,7 +27,9 @@ __global__ void EveryDetailFunction(const T* in, T* out, CameraModel<T> cam) {
   Vec3<T> g_mean{{T(0), T(0), T(0)}}, g_log_scale{{T(0), T(0), T(0)}};
   Mat3<T> g_rotation = ZeroMat3<T>();
   ProjectGaussianVjp(cam, mean, rotation, log_scale, p.mean2d, p.conic, &g_mean, &g_rotation, &g_log_scale);
-  const TileRect rect = ComputeTileRect(p.mean2d, Ceil(ProjectedExtent(p.conic)), cam.tiles_x, cam.tiles_y);
+  const TileRect rect = ContributionTileRect(
+      ComputeTileRect(p.mean2d, Ceil(ProjectedExtent(p.conic)), cam.tiles_x, cam.tiles_y), p.mean2d, p.cov2d,
+      in[58], cam.tiles_x, cam.tiles_y);
 
   bool clamped[3];
   const Vec3<T> dir = mean - cam.center;
@@ -43,10 +45,15 @@ __global__ void EveryDetailFunction(const T* in, T* out, CameraModel<T> cam) {
   splat.opacity = Sigmoid(in[58]);
   splat.color = color;
   splat.frame = &frame;
-  splat.texels = in + 59;
+  splat.texels = in + 60;  // 16-byte aligned, as LoadTexel needs on the device
   splat.tex_h = 2;
   splat.tex_w = 2;
   const SplatSample<T> sample = EvaluateSplat(splat, ray[0], ray[1], ray);
+  const ConstantTexel<T> constant = MakeConstantTexel(in + 60);
+  SplatParams<T> flat = splat;
+  flat.tex_h = flat.tex_w = 1;
+  flat.constant = &constant;
+  const SplatSample<T> flat_sample = EvaluateSplat(flat, ray[0], ray[1], ray);
   const Vec3<T> back{{T(0), T(0), T(0)}};
   Vec3<T> g_color;
   const T g_alpha = BlendStepVjp(sample.alpha, sample.color, T(1), back, T(0.5), color, T(1), &g_color);
@@ -57,9 +64,9 @@ __global__ void EveryDetailFunction(const T* in, T* out, CameraModel<T> cam) {
   const Vec4<T> g_q = QuaternionToRotationVjp(q, g_rotation);
 
   T grown[64];
-  UpsampleTexture(in + 59, 2, 2, grown, 4, 4, 4);
+  UpsampleTexture(in + 60, 2, 2, grown, 4, 4, 4);
   out[0] = g_q[0] + g_mean[0] + g_log_scale[0] + g_sh[5] + g_texels[3] + grown[7] + T(rect.x0 + p.radius) +
-           T(IsFinite(g_alpha) ? 1 : 0) + Min(Abs(in[0]), Max(in[1], Tanh(in[2])));
+           T(IsFinite(g_alpha) ? 1 : 0) + flat_sample.alpha + Min(Abs(in[0]), Max(in[1], Tanh(in[2])));
 }
 
 template __global__ void EveryDetailFunction<float>(const float*, float*, CameraModel<float>);

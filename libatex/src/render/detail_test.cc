@@ -209,6 +209,87 @@ TEST(DetailProjection, TileRectangleAndRadius) {
   EXPECT_TRUE(rect.empty());
 }
 
+// Every pixel where a splat can pass the 1/255 alpha cut lies in a tile of its
+// contribution rectangle (brute force over a 128×96 image), the cut rectangle lies in
+// the 3σ one, and faint or elongated splats do lose tiles.
+TEST(DetailProjection, ContributionTileRectKeepsEveryContributingPixel) {
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> unit(0, 1);
+  const int width = 128, height = 96, tiles_x = 8, tiles_y = 6;
+  int shrunk = 0, emptied = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const Vec2<double> mean{{-20 + 170 * unit(rng), -20 + 140 * unit(rng)}};
+    const double sx = 0.5 + 30 * unit(rng) * unit(rng), sy = 0.5 + 30 * unit(rng) * unit(rng);
+    const double rho = -0.95 + 1.9 * unit(rng);
+    const Vec3<double> cov2d{{sx * sx + kCov2dBlur, rho * sx * sy, sy * sy + kCov2dBlur}};
+    Vec3<double> conic;
+    ASSERT_TRUE(InvertCovariance2d(cov2d, &conic));
+    const double opacity = std::pow(10.0, -3.0 + 3.0 * unit(rng));  // 0.001 .. 1
+    const double factor = trial % 2 ? kTextureAlphaFactorBound : 1.0;
+    const TileRect rect = ComputeTileRect(mean, std::ceil(ProjectedExtent(cov2d)), tiles_x, tiles_y);
+    const TileRect cut = ContributionTileRect(rect, mean, cov2d, opacity * factor, tiles_x, tiles_y);
+    if (!cut.empty()) {
+      EXPECT_TRUE(cut.x0 >= rect.x0 && cut.x1 <= rect.x1 && cut.y0 >= rect.y0 && cut.y1 <= rect.y1);
+    }
+    const int area = rect.empty() ? 0 : (rect.x1 - rect.x0) * (rect.y1 - rect.y0);
+    const int cut_area = cut.empty() ? 0 : (cut.x1 - cut.x0) * (cut.y1 - cut.y0);
+    shrunk += cut_area < area;
+    emptied += area > 0 && cut_area == 0;
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        const int tx = x / kTileSize, ty = y / kTileSize;
+        if (!rect.contains(tx, ty)) continue;
+        const double power = GaussianPower(conic, x + 0.5 - mean[0], y + 0.5 - mean[1]);
+        const bool passes = power <= 0 && opacity * std::exp(power) * factor >= kMinSplatAlpha;
+        if (passes) {
+          ASSERT_TRUE(cut.contains(tx, ty)) << "trial " << trial << " pixel " << x << "," << y;
+        }
+      }
+    }
+  }
+  EXPECT_GT(shrunk, 100);
+  EXPECT_GT(emptied, 10);  // opacity × factor < 1/255: no tiles at all
+}
+
+TEST(DetailComposite, OneTexelSkipsCoordinatesWithTheSameSample) {
+  // A 1×1 texture through the coordinate-free path (with and without the precomputed
+  // ConstantTexel) gives exactly what the general bilinear path gives.
+  const auto r = QuaternionToRotation(Vec4<double>{{0.9, 0.1, -0.2, 0.3}});
+  const TextureFrame<double> frame =
+      MakeTextureFrame(r, Vec3<double>{{0.1, 0.1, 3.0}}, Vec3<double>{{-0.5, -0.7, -1.0}}, Vec3<double>{{0, 0, 0}}, 0, 1);
+  const double texel[4] = {0.7, -1.3, 0.2, 2.1};
+  SplatParams<double> s;
+  s.mean2d = {{10.2, 7.9}};
+  s.conic = {{0.08, 0.02, 0.12}};
+  s.opacity = 0.6;
+  s.color = {{0.3, 0.5, 0.7}};
+  s.frame = &frame;
+  s.texels = texel;
+  s.tex_h = s.tex_w = 1;
+  const Vec3<double> ray{{0.03, 0.02, 1.0}};
+  const SplatSample<double> fast = EvaluateSplat(s, 11.5, 8.5, ray);
+  const ConstantTexel<double> constant = MakeConstantTexel(texel);
+  s.constant = &constant;
+  const SplatSample<double> precomputed = EvaluateSplat(s, 11.5, 8.5, ray);
+  // The general path, step by step.
+  const TexCoord<double> tc = ComputeTexCoord(frame, ray);
+  const Vec4<double> sampled = SampleTexels(texel, 1, MakeBilinearTaps(tc, 1, 1));
+  const double alpha = s.opacity * fast.falloff * TextureAlphaFactor(sampled[3]);
+  ASSERT_TRUE(fast.contributes);
+  for (const auto& smp : {fast, precomputed}) {
+    EXPECT_EQ(smp.alpha, alpha);
+    for (int ch = 0; ch < 3; ++ch) EXPECT_EQ(smp.color[ch], s.color[ch] + TextureColorResidual(sampled[ch]));
+    for (int c = 0; c < 4; ++c) EXPECT_EQ(smp.texel[c], texel[c]);
+  }
+  // The VJP: all of the texel gradient on the one texel, none on the frame.
+  auto grad = ZeroSplatGrad<double>();
+  double g_texel[4] = {0, 0, 0, 0};
+  EvaluateSplatVjp(s, ray, precomputed, Vec3<double>{{0.5, -0.25, 1.0}}, 0.75, &grad, g_texel);
+  for (int c = 0; c < 4; ++c) EXPECT_NE(g_texel[c], 0.0) << c;
+  EXPECT_EQ(grad.frame.offset_n, 0.0);
+  EXPECT_EQ(grad.frame.inv_scale_u, 0.0);
+}
+
 TEST(DetailSh, DegreeZeroAndOneClosedForm) {
   const double sh[12] = {1.0, -2.0, 0.5, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9};
   bool clamped[3];

@@ -5,6 +5,7 @@
 
 #include "atex/detail/quaternion.h"
 #include "atex/detail/sh.h"
+#include "atex/detail/texture.h"
 #include "render/parallel.h"
 #include "render/render_internal.h"
 
@@ -35,6 +36,7 @@ Status BuildRenderState(const detail::CameraModel<T>& cam, const BasicGaussians<
   st.color.assign(n * 3, T(0));
   st.frames.assign(textures != nullptr ? n : 0, detail::ZeroTextureFrame<T>());
   std::vector<detail::TileRect> rects(n, detail::TileRect{0, 0, 0, 0});  // [N]
+  const T max_texture_factor = textures != nullptr ? T(detail::kTextureAlphaFactorBound) : T(1);
 
   const int64_t count = static_cast<int64_t>(n);
 #ifdef _OPENMP
@@ -52,7 +54,8 @@ Status BuildRenderState(const detail::CameraModel<T>& cam, const BasicGaussians<
     st.opacity[i] = detail::Sigmoid(g.opacity_logits[i]);
     if (!p.visible) continue;
     out->radius[i] = p.radius;
-    rects[i] = p.rect;
+    rects[i] = detail::ContributionTileRect(p.rect, p.mean2d, p.cov2d, st.opacity[i] * max_texture_factor,
+                                            cam.tiles_x, cam.tiles_y);
     for (int k = 0; k < 3; ++k) st.conic[3 * i + k] = p.conic[k];
     bool clamped[3];
     const Vec3<T> color = detail::ShColor(sh_degree, &g.sh[i * coeffs * 3], mean - cam.center, clamped);

@@ -31,6 +31,25 @@ ATEX_HD void GaussianPowerVjp(const Vec3<T>& conic, T dx, T dy, T g_power, Vec3<
   (*g_mean2d)[1] += (conic[1] * dx + conic[2] * dy) * g_power;
 }
 
+// A 1×1 texture is the same texel wherever a ray meets its plane, so its sample needs
+// no texture coordinates and its activations are the same at every pixel: a rasteriser
+// may compute them once per splat and view (most adaptive textures stay 1×1).
+template <typename T>
+struct ConstantTexel {
+  Vec4<T> raw;             // the texel (raw RGBA)
+  Vec3<T> color_residual;  // TextureColorResidual(raw[c])
+  T alpha_factor;          // TextureAlphaFactor(raw[3])
+};
+
+template <typename T>
+ATEX_HD ConstantTexel<T> MakeConstantTexel(const T* texel /* [4] */) {
+  ConstantTexel<T> c;
+  c.raw = LoadTexel(texel);
+  for (int ch = 0; ch < 3; ++ch) c.color_residual[ch] = TextureColorResidual(c.raw[ch]);
+  c.alpha_factor = TextureAlphaFactor(c.raw[3]);
+  return c;
+}
+
 // One Gaussian as the rasteriser sees it (per view).
 template <typename T>
 struct SplatParams {
@@ -41,6 +60,9 @@ struct SplatParams {
   const TextureFrame<T>* frame; // null: no texture (r = 0, a = 0)
   const T* texels;              // [tex_h][tex_w][4] of this Gaussian (when frame is set)
   int tex_h, tex_w;
+  // Optional, 1×1 textures only: MakeConstantTexel(texels), computed once by the caller.
+  // The results are the same with or without it.
+  const ConstantTexel<T>* constant = nullptr;
 };
 
 // The contribution of one splat at one pixel, with what its VJP needs.
@@ -75,11 +97,27 @@ ATEX_HD SplatSample<T> EvaluateSplat(const SplatParams<T>& s, T px, T py, const 
   if (s.frame != nullptr) {
     // Exact early-out: the texture factor is at most e^0.1 < kTextureAlphaFactorBound.
     if (base * T(kTextureAlphaFactorBound) < T(kMinSplatAlpha)) return out;
-    out.tc = ComputeTexCoord(*s.frame, ray);
-    out.taps = MakeBilinearTaps(out.tc, s.tex_h, s.tex_w);
-    out.texel = SampleTexels(s.texels, s.tex_w, out.taps);
-    alpha = base * TextureAlphaFactor(out.texel[3]);
-    for (int ch = 0; ch < 3; ++ch) out.color[ch] += TextureColorResidual(out.texel[ch]);
+    if (s.tex_h == 1 && s.tex_w == 1) {
+      // The taps of a 1×1 grid are (0, 0) with zero fractions whatever (u, v), and the
+      // coordinates get no gradient (the four taps are one texel): skip the ray–plane step.
+      out.tc = {T(0), T(0), true, true};
+      out.taps = {{0, 0, T(0)}, {0, 0, T(0)}};
+      if (s.constant != nullptr) {
+        out.texel = s.constant->raw;
+        alpha = base * s.constant->alpha_factor;
+        for (int ch = 0; ch < 3; ++ch) out.color[ch] += s.constant->color_residual[ch];
+      } else {
+        out.texel = LoadTexel(s.texels);
+        alpha = base * TextureAlphaFactor(out.texel[3]);
+        for (int ch = 0; ch < 3; ++ch) out.color[ch] += TextureColorResidual(out.texel[ch]);
+      }
+    } else {
+      out.tc = ComputeTexCoord(*s.frame, ray);
+      out.taps = MakeBilinearTaps(out.tc, s.tex_h, s.tex_w);
+      out.texel = SampleTexels(s.texels, s.tex_w, out.taps);
+      alpha = base * TextureAlphaFactor(out.texel[3]);
+      for (int ch = 0; ch < 3; ++ch) out.color[ch] += TextureColorResidual(out.texel[ch]);
+    }
   }
   out.alpha_clamped = alpha > T(kMaxSplatAlpha);
   out.alpha = out.alpha_clamped ? T(kMaxSplatAlpha) : alpha;
@@ -115,7 +153,7 @@ ATEX_HD void EvaluateSplatVjp(const SplatParams<T>& s, const Vec3<T>& ray, const
                               const Vec3<T>& g_color, T g_alpha, SplatGrad<T>* g, T* g_texels) {
   g->color += g_color;
   const bool textured = s.frame != nullptr;
-  const T factor = textured ? TextureAlphaFactor(smp.texel[3]) : T(1);
+  const T factor = !textured ? T(1) : (s.constant != nullptr ? s.constant->alpha_factor : TextureAlphaFactor(smp.texel[3]));
   Vec4<T> g_rgba{{T(0), T(0), T(0), T(0)}};
   if (textured) {
     for (int ch = 0; ch < 3; ++ch) g_rgba[ch] = TextureColorResidualVjp(smp.texel[ch], g_color[ch]);

@@ -14,6 +14,8 @@ ATEX_HD float Sqrt(float x) { return sqrtf(x); }
 ATEX_HD double Sqrt(double x) { return sqrt(x); }
 ATEX_HD float Exp(float x) { return expf(x); }
 ATEX_HD double Exp(double x) { return exp(x); }
+ATEX_HD float Log(float x) { return logf(x); }
+ATEX_HD double Log(double x) { return log(x); }
 ATEX_HD float Tanh(float x) { return tanhf(x); }
 ATEX_HD double Tanh(double x) { return tanh(x); }
 ATEX_HD float Floor(float x) { return floorf(x); }

@@ -273,6 +273,39 @@ ATEX_HD TileRect ComputeTileRect(const Vec2<T>& mean2d, T radius, int tiles_x, i
   return rect;
 }
 
+// The tiles a splat can reach (conventions §4 step 7). A sample passes the 1/255 alpha
+// cut only where opacity · G · (texture factor) ≥ 1/255, i.e. inside the ellipse
+// ½ dᵀΣ₂⁻¹d ≤ L with L = ln(255 · max_alpha), max_alpha = opacity × the largest texture
+// factor (1 untextured). That ellipse's bounding box has half-sides sqrt(2 L Σ₂xx) and
+// sqrt(2 L Σ₂yy) (with slack for rounding). `rect` (the 3σ rectangle) is cut to the
+// box: the tiles removed hold no pixel the splat could change, so images and gradients are
+// the same, while faint and elongated splats enter fewer tile lists (gsplat does likewise).
+// Empty when max_alpha < 1/255 (the splat cannot pass the cut anywhere).
+template <typename T>
+ATEX_HD TileRect ContributionTileRect(const TileRect& rect, const Vec2<T>& mean2d, const Vec3<T>& cov2d, T max_alpha,
+                                      int tiles_x, int tiles_y) {
+  const T ratio = max_alpha * T(255);
+  if (!(ratio >= T(1))) return {rect.x0, rect.y0, rect.x0, rect.y0};
+  const T two_l = T(2) * Log(ratio);
+  // 0.1 % and one pixel of slack cover float rounding in the per-pixel test.
+  const T half_x = Sqrt(two_l * Max(cov2d[0], T(0))) * T(1.001) + T(1);
+  const T half_y = Sqrt(two_l * Max(cov2d[2], T(0))) * T(1.001) + T(1);
+  const T inv_tile = T(1) / T(kTileSize);
+  const T tx = T(tiles_x), ty = T(tiles_y);
+  TileRect box;
+  box.x0 = static_cast<int>(ClampNanLow(Floor((mean2d[0] - half_x) * inv_tile), T(0), tx));
+  box.x1 = static_cast<int>(ClampNanLow(Floor((mean2d[0] + half_x) * inv_tile) + T(1), T(0), tx));
+  box.y0 = static_cast<int>(ClampNanLow(Floor((mean2d[1] - half_y) * inv_tile), T(0), ty));
+  box.y1 = static_cast<int>(ClampNanLow(Floor((mean2d[1] + half_y) * inv_tile) + T(1), T(0), ty));
+  TileRect out;
+  out.x0 = box.x0 > rect.x0 ? box.x0 : rect.x0;
+  out.y0 = box.y0 > rect.y0 ? box.y0 : rect.y0;
+  out.x1 = box.x1 < rect.x1 ? box.x1 : rect.x1;
+  out.y1 = box.y1 < rect.y1 ? box.y1 : rect.y1;
+  if (out.empty()) return {rect.x0, rect.y0, rect.x0, rect.y0};
+  return out;
+}
+
 // ---- the whole per-Gaussian projection ------------------------------------------
 template <typename T>
 struct ProjectedGaussian {
@@ -282,6 +315,7 @@ struct ProjectedGaussian {
   T depth;           // camera-space z
   int radius;        // ceil(3 sqrt(λ_max)) when visible, else 0
   TileRect rect;     // empty when not visible
+  Vec3<T> cov2d;     // Σ₂ (xx, xy, yy) with the blur (valid when visible)
 };
 
 // `rotation` = R(q̂) of the (deformed) Gaussian, shared with the texture frame.
@@ -294,6 +328,7 @@ ATEX_HD ProjectedGaussian<T> ProjectGaussian(const CameraModel<T>& cam, const Ve
   out.conic = {{T(0), T(0), T(0)}};
   out.radius = 0;
   out.rect = {0, 0, 0, 0};
+  out.cov2d = {{T(0), T(0), T(0)}};
   const Vec3<T> t = WorldToCamera(cam, mean);
   out.depth = t[2];
   if (!(t[2] > cam.near_plane)) return out;
@@ -313,6 +348,7 @@ ATEX_HD ProjectedGaussian<T> ProjectGaussian(const CameraModel<T>& cam, const Ve
   if (rect.empty()) return out;
   out.visible = true;
   out.conic = conic;
+  out.cov2d = cov2d;
   out.rect = rect;
   out.radius = static_cast<int>(Min(radius, T(kMaxRadiusPixels)));
   return out;

@@ -8,6 +8,8 @@
 // innermost); callers pass a pointer to the Gaussian's first texel.
 #pragma once
 
+#include <type_traits>
+
 #include "atex/detail/math.h"
 #include "atex/detail/vec.h"
 #include "atex/hd.h"
@@ -171,15 +173,29 @@ ATEX_HD BilinearTaps<T> MakeBilinearTaps(const TexCoord<T>& tc, int height, int 
   return {MakeTexelTap(TexelGridCoordinate(tc.u, width), width), MakeTexelTap(TexelGridCoordinate(tc.v, height), height)};
 }
 
+// One texel's raw RGBA. In device code (float) a single 16-byte read-only load, so
+// `texel` must be 16-byte aligned there and not written by the running kernel: texel rows
+// start at multiples of 4 floats of a cudaMalloc'd pool, and rasterisers only read them.
+template <typename T>
+ATEX_HD Vec4<T> LoadTexel(const T* texel /* [4] */) {
+#ifdef __CUDA_ARCH__
+  if constexpr (std::is_same_v<T, float>) {
+    const float4 v = __ldg(reinterpret_cast<const float4*>(texel));
+    return {{v.x, v.y, v.z, v.w}};
+  }
+#endif
+  return {{texel[0], texel[1], texel[2], texel[3]}};
+}
+
 // Bilinear RGBA over texels[y][x][4] (row stride `width`).
 template <typename T>
 ATEX_HD Vec4<T> SampleTexels(const T* texels /* [h][w][4] */, int width, const BilinearTaps<T>& taps) {
   const T fx = taps.x.frac, fy = taps.y.frac;
   const T w00 = (T(1) - fx) * (T(1) - fy), w01 = fx * (T(1) - fy), w10 = (T(1) - fx) * fy, w11 = fx * fy;
-  const T* t00 = texels + (taps.y.i0 * width + taps.x.i0) * 4;
-  const T* t01 = texels + (taps.y.i0 * width + taps.x.i1) * 4;
-  const T* t10 = texels + (taps.y.i1 * width + taps.x.i0) * 4;
-  const T* t11 = texels + (taps.y.i1 * width + taps.x.i1) * 4;
+  const Vec4<T> t00 = LoadTexel(texels + (taps.y.i0 * width + taps.x.i0) * 4);
+  const Vec4<T> t01 = LoadTexel(texels + (taps.y.i0 * width + taps.x.i1) * 4);
+  const Vec4<T> t10 = LoadTexel(texels + (taps.y.i1 * width + taps.x.i0) * 4);
+  const Vec4<T> t11 = LoadTexel(texels + (taps.y.i1 * width + taps.x.i1) * 4);
   Vec4<T> out;
   for (int c = 0; c < 4; ++c) out[c] = w00 * t00[c] + w01 * t01[c] + w10 * t10[c] + w11 * t11[c];
   return out;

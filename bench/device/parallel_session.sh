@@ -1,0 +1,85 @@
+#!/usr/bin/env bash
+# Several experiment matrices at once on a machine of several GPUs, running on between
+# device calls (a lent machine allows 10 minutes per command; processes started with
+# setsid outlive the call while the machine stays warm, so each next call must follow at once).
+#   bench/device/parallel_session.sh start OUT_DIR   build, then start every job in the background
+#   bench/device/parallel_session.sh wait  OUT_DIR   follow the jobs until they end or the call's time is up
+# Jobs (JOBS, default "session stress"):
+#   session: bench/configs/panoptic_session.json on all GPUs (out/panoptic), with FPS
+#   stress:  bench/configs/stress_gpu.json on all GPUs but the first (out/stress), no FPS
+# The two share GPUs through run_matrix's per-GPU lock files: one cell per GPU at a time.
+# Each call leaves OUT_DIR/results.tgz (rows, logs; no models) and OUT_DIR/progress.txt.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+phase=$1 out=$2
+mkdir -p "$out" out
+BUILD=${ATEX_GPU_BUILD:-bg}
+atex=$BUILD/bin/atex
+start=$(date +%s)
+CALL_SECONDS=${CALL_SECONDS:-570}
+gpus=$(nvidia-smi --query-gpu=index --format=csv,noheader | paste -sd, -)
+rest=${gpus#*,}
+[ "$rest" = "$gpus" ] && rest=$gpus  # one GPU: both jobs use it, one cell at a time
+
+launch() {  # name config out-dir gpu-list extra-args...
+  local name=$1 config=$2 dir=$3 list=$4
+  shift 4
+  [ -f "out/$name.rc" ] && return 0
+  if [ -f "out/$name.pid" ] && kill -0 "$(cat "out/$name.pid")" 2>/dev/null; then return 0; fi
+  setsid nohup bash -c "python3 bench/run_matrix.py $config --atex $atex --out $dir --gpus $list $* \
+      > out/$name.log 2>&1; echo \$? > out/$name.rc" > /dev/null 2>&1 &
+  echo $! > "out/$name.pid"
+  echo "started $name on GPUs $list"
+}
+
+snapshot() {
+  {
+    date +%T
+    for j in ${JOBS:-session stress}; do
+      echo "== $j: rc=$(cat out/$j.rc 2>/dev/null || echo running)"
+      tail -n 40 "out/$j.log" 2>/dev/null || true
+    done
+    nvidia-smi --query-gpu=index,utilization.gpu,memory.used --format=csv,noheader || true
+  } > "$out/progress.txt"
+  tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic out/stress out/*.log out/*.rc \
+    out/profile 2>/dev/null || true
+}
+
+case $phase in
+  start)
+    bench/device/paper_runs.sh build "$out"
+    for j in ${JOBS:-session stress}; do
+      case $j in
+        session) launch session bench/configs/panoptic_session.json out/panoptic "$gpus" ;;
+        stress) launch stress bench/configs/stress_gpu.json out/stress "$rest" --skip-fps ;;
+        *) echo "unknown job $j" >&2; exit 2 ;;
+      esac
+    done
+    "$0" wait "$out"
+    ;;
+  wait)
+    while :; do
+      done_all=1
+      for j in ${JOBS:-session stress}; do [ -f "out/$j.rc" ] || done_all=0; done
+      [ $done_all = 1 ] && break
+      [ $(( $(date +%s) - start )) -ge "$CALL_SECONDS" ] && break
+      snapshot
+      sleep 15
+    done
+    snapshot
+    cat "$out/progress.txt"
+    ;;
+  profile)
+    # Nsight Compute on the rasteriser of a textured and an untextured model at 1352x1014.
+    mkdir -p out/profile
+    bb=.devdata/panoptic_basketball
+    for model in ${PROFILE_MODELS:-}; do
+      name=$(basename "$(dirname "$model")")_$(basename "$model" .atex)
+      ncu --kernel-name regex:'Raster|Project|Deform|Hex|Mlp|Sort|Emit' --launch-skip 20 --launch-count 12 \
+        --section SpeedOfLight --section Occupancy --section LaunchStats \
+        "$atex" fps "$model" --data "$bb" --size 1352x1014 --repeats 2 > "out/profile/ncu_$name.txt" 2>&1 || true
+    done
+    snapshot
+    ;;
+  *) echo "unknown phase $phase" >&2; exit 2 ;;
+esac
