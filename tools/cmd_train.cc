@@ -159,7 +159,9 @@ atex::cli::Runner SetupTrain(CLI::App& app) {
   app.add_option("--config", a->config_file, "JSON training config (see configs/; --print-config shows the defaults)");
   app.add_option("--set", a->overrides, "Override one config value, e.g. --set stage1.batch_size=2 (repeatable)");
   app.add_option("--stage", a->stage, "1 (4DGS), 2 (textures on --init), or all")->capture_default_str();
-  app.add_option("--textures", a->textures, "Stage-2 texture mode: adaptive, uniform or none");
+  app.add_option("--textures", a->textures,
+                 "Stage-2 texture mode: adaptive, uniform or none (with --stage 2: the same fine-tuning without "
+                 "textures; with --stage all: stage 1 only)");
   app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
   app.add_option("--init", a->init, "Stage-1 asset to start stage 2 from");
   app.add_option("--checkpoint-dir", a->checkpoint_dir, "Write periodic checkpoints here (atomically)");

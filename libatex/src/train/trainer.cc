@@ -170,7 +170,11 @@ class Loop {
       phases.push_back(Phase::kCoarse);
       phases.push_back(Phase::kFine);
     }
-    if ((options_.stages & kStage2) && config_.stage2.textures != TextureMode::kNone) {
+    // Stage 2 without textures is the untextured control of a stage-2 run (the same joint
+    // fine-tuning of the Gaussians and the deformation, no texture pool) when stage 2 alone is
+    // asked for; after stage 1 in the same run, "none" means plain 4DGS: stage 1 only.
+    const bool textures = config_.stage2.textures != TextureMode::kNone;
+    if ((options_.stages & kStage2) && (textures || !(options_.stages & kStage1))) {
       phases.push_back(Phase::kTextures);
     }
     auto it = std::find(phases.begin(), phases.end(), start);

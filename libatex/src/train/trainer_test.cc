@@ -123,6 +123,40 @@ TEST(TrainerLego, CpuStageTwoGrowsWithinTheBudget) {
   EXPECT_LT(adaptive_texels, 16u * n) << "adaptive should use fewer texels than uniform 4x4";
 }
 
+// `--stage 2 --textures none`: the untextured control fine-tunes the Gaussians and the
+// deformation for the stage-2 steps (it used to run no step at all), and writes no pool;
+// with stage 1 in the same run, "none" stays plain 4DGS (no stage-2 steps).
+TEST(TrainerLego, StageTwoWithoutTexturesFineTunesTheModel) {
+  ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  auto data = OpenLego(path);
+  ASSERT_NE(data, nullptr);
+  TrainConfig config = SmallConfig();
+  config.stage1.coarse_iterations = 60;
+  config.stage1.fine_iterations = 20;
+  config.stage2.textures = TextureMode::kNone;
+  TrainerOptions s1;
+  s1.config = config;
+  s1.stages = kStage1 | kStage2;
+  auto b1 = MakeCpuBackend();
+  auto stage1 = Train(*data, *b1, s1);
+  ASSERT_TRUE(stage1.ok()) << stage1.status().ToString();
+  EXPECT_EQ(stage1->texture_steps, 0);
+  EXPECT_FALSE(stage1->asset.textures.has_value());
+
+  TrainerOptions s2;
+  s2.config = config;
+  s2.stages = kStage2;
+  auto b2 = MakeCpuBackend();
+  auto stage2 = Train(*data, *b2, s2, &stage1->asset);
+  ASSERT_TRUE(stage2.ok()) << stage2.status().ToString();
+  EXPECT_EQ(stage2->texture_steps, config.stage2.iterations);
+  EXPECT_FALSE(stage2->asset.textures.has_value());
+  EXPECT_TRUE(stage2->growths.empty());
+  ASSERT_EQ(stage2->asset.gaussians.size(), stage1->asset.gaussians.size());
+  EXPECT_NE(stage2->asset.gaussians.positions, stage1->asset.gaussians.positions) << "no step changed the model";
+  EXPECT_TRUE(ValidateAsset(stage2->asset).ok());
+}
+
 // Growth through the backend leaves the rendered image unchanged (corner-aligned resampling).
 TEST(TrainerLego, GrowthThroughTheBackendLeavesRendersUnchanged) {
   ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
