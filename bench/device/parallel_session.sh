@@ -15,7 +15,7 @@ phase=$1 out=$2
 mkdir -p "$out" out
 BUILD=${ATEX_GPU_BUILD:-bg}
 atex=$BUILD/bin/atex
-start=$(date +%s)
+start=${PARALLEL_SESSION_START:-$(date +%s)}  # the call's start: `start` passes it on to `wait`
 CALL_SECONDS=${CALL_SECONDS:-570}
 gpus=$(nvidia-smi --query-gpu=index --format=csv,noheader | paste -sd, -)
 rest=${gpus#*,}
@@ -55,7 +55,7 @@ case $phase in
         *) echo "unknown job $j" >&2; exit 2 ;;
       esac
     done
-    "$0" wait "$out"
+    PARALLEL_SESSION_START=$start "$0" wait "$out"
     ;;
   wait)
     while :; do
