@@ -42,7 +42,7 @@ snapshot() {
     nvidia-smi --query-gpu=index,utilization.gpu,memory.used --format=csv,noheader || true
   } > "$out/progress.txt"
   tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic out/stress out/*.log out/*.rc \
-    out/profile 2>/dev/null || true
+    2>/dev/null || true
 }
 
 case $phase in
@@ -68,18 +68,6 @@ case $phase in
     done
     snapshot
     cat "$out/progress.txt"
-    ;;
-  profile)
-    # Nsight Compute on the rasteriser of a textured and an untextured model at 1352x1014.
-    mkdir -p out/profile
-    bb=.devdata/panoptic_basketball
-    for model in ${PROFILE_MODELS:-}; do
-      name=$(basename "$(dirname "$model")")_$(basename "$model" .atex)
-      ncu --kernel-name regex:'Raster|Project|Deform|Hex|Mlp|Sort|Emit' --launch-skip 20 --launch-count 12 \
-        --section SpeedOfLight --section Occupancy --section LaunchStats \
-        "$atex" fps "$model" --data "$bb" --size 1352x1014 --repeats 2 > "out/profile/ncu_$name.txt" 2>&1 || true
-    done
-    snapshot
     ;;
   *) echo "unknown phase $phase" >&2; exit 2 ;;
 esac

@@ -20,12 +20,7 @@ __global__ void __launch_bounds__(kBlock) RasterForwardKernel(
   __shared__ float3 s_conic[kBlock];
   __shared__ float s_opacity[kBlock];
   __shared__ float3 s_color[kBlock];
-  __shared__ detail::TextureFrame<float> s_frame[kTextured ? kBlock : 1];
-  // Texture layout of the batch's splats, read once per batch instead of once per pixel,
-  // and the activations of 1×1 textures, which are the same at every pixel.
-  __shared__ uint32_t s_texel_offset[kTextured ? kBlock : 1];
-  __shared__ uchar2 s_tex_size[kTextured ? kBlock : 1];  // (h, w)
-  __shared__ detail::ConstantTexel<float> s_constant[kTextured ? kBlock : 1];
+  __shared__ TextureBatch<kTextured ? kBlock : 1> s_tex;
 
   const int tile = blockIdx.y * cam.tiles_x + blockIdx.x;
   const int x = blockIdx.x * detail::kTileSize + threadIdx.x % detail::kTileSize;
@@ -51,16 +46,7 @@ __global__ void __launch_bounds__(kBlock) RasterForwardKernel(
       s_conic[threadIdx.x] = make_float3(p.conic[3 * id], p.conic[3 * id + 1], p.conic[3 * id + 2]);
       s_opacity[threadIdx.x] = p.opacity[id];
       s_color[threadIdx.x] = make_float3(p.color[3 * id], p.color[3 * id + 1], p.color[3 * id + 2]);
-      if constexpr (kTextured) {
-        s_frame[threadIdx.x] = p.frames[id];
-        const uchar4 layout = reinterpret_cast<const uchar4*>(in.texture_layout)[id];
-        const uint32_t offset = in.texel_offsets[id];
-        s_texel_offset[threadIdx.x] = offset;
-        s_tex_size[threadIdx.x] = make_uchar2(layout.x, layout.y);
-        if (layout.x == 1 && layout.y == 1) {
-          s_constant[threadIdx.x] = detail::MakeConstantTexel(in.texels + size_t(offset) * 4);
-        }
-      }
+      if constexpr (kTextured) s_tex.Load(in, p, id, threadIdx.x);
     }
     __syncthreads();
     const int in_batch = min(kBlock, count - batch);
@@ -71,11 +57,7 @@ __global__ void __launch_bounds__(kBlock) RasterForwardKernel(
       s.opacity = s_opacity[j];
       s.color = {{s_color[j].x, s_color[j].y, s_color[j].z}};
       if constexpr (kTextured) {
-        s.frame = &s_frame[j];
-        s.texels = in.texels + size_t(s_texel_offset[j]) * 4;
-        s.tex_h = s_tex_size[j].x;
-        s.tex_w = s_tex_size[j].y;
-        s.constant = s.tex_h == 1 && s.tex_w == 1 ? &s_constant[j] : nullptr;
+        s_tex.Fill(in, j, &s);
       } else {
         s.frame = nullptr;
         s.texels = nullptr;

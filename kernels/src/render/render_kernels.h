@@ -31,6 +31,37 @@ struct SplatGrads {
 };
 inline constexpr int kSplatGradWidth = 2 + 3 + 1 + 3 + 14;  // mean2d, conic, opacity, color, frame
 
+// The texture data of the splats a rasteriser block streams through shared memory, one
+// slot per splat of the batch: the frame, the layout (read once per batch instead of once
+// per pixel) and the activations of 1×1 textures, which are the same at every pixel.
+template <int kSlots>
+struct TextureBatch {
+  detail::TextureFrame<float> frame[kSlots];
+  uint32_t texel_offset[kSlots];
+  uchar2 size[kSlots];  // (h, w)
+  detail::ConstantTexel<float> constant[kSlots];
+
+  // Gaussian `id` into `slot` (one thread per slot, before the block's __syncthreads).
+  __device__ void Load(const RenderInputs& in, const Projected& p, uint32_t id, int slot) {
+    frame[slot] = p.frames[id];
+    const uchar4 layout = reinterpret_cast<const uchar4*>(in.texture_layout)[id];  // [N][4] bytes
+    texel_offset[slot] = in.texel_offsets[id];
+    size[slot] = make_uchar2(layout.x, layout.y);
+    if (layout.x == 1 && layout.y == 1) {
+      constant[slot] = detail::MakeConstantTexel(in.texels + size_t(texel_offset[slot]) * 4);
+    }
+  }
+
+  // The texture fields of SplatParams for the splat in `slot`.
+  __device__ void Fill(const RenderInputs& in, int slot, detail::SplatParams<float>* s) const {
+    s->frame = &frame[slot];
+    s->texels = in.texels + size_t(texel_offset[slot]) * 4;
+    s->tex_h = size[slot].x;
+    s->tex_w = size[slot].y;
+    s->constant = s->tex_h == 1 && s->tex_w == 1 ? &constant[slot] : nullptr;
+  }
+};
+
 Status LaunchProject(const detail::CameraModel<float>& cam, const RenderInputs& in, const Projected& out,
                      cudaStream_t stream);
 

@@ -40,6 +40,24 @@ std::unique_ptr<Dataset> OpenLego(const std::filesystem::path& path) {
   return dataset.ok() ? std::move(*dataset) : nullptr;
 }
 
+// SmallConfig with a shorter stage 1: the base model of the stage-2 tests.
+TrainConfig ShortStageOneConfig() {
+  TrainConfig c = SmallConfig();
+  c.stage1.coarse_iterations = 60;
+  c.stage1.fine_iterations = 20;
+  return c;
+}
+
+// Trains `stages` of `config` on a fresh CPU backend (from `init` when given).
+StatusOr<TrainSummary> TrainOnCpu(const Dataset& data, const TrainConfig& config, int stages,
+                                  const Asset* init = nullptr) {
+  TrainerOptions options;
+  options.config = config;
+  options.stages = stages;
+  auto backend = MakeCpuBackend();
+  return Train(data, *backend, options, init);
+}
+
 TEST(TrainerLego, CpuStageOneRaisesTestPsnrClearly) {
   ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
   auto data = OpenLego(path);
@@ -79,25 +97,16 @@ TEST(TrainerLego, CpuStageTwoGrowsWithinTheBudget) {
   ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
   auto data = OpenLego(path);
   ASSERT_NE(data, nullptr);
-  TrainConfig config = SmallConfig();
-  config.stage1.coarse_iterations = 60;
-  config.stage1.fine_iterations = 20;
-  TrainerOptions s1;
-  s1.config = config;
-  s1.stages = kStage1;
-  auto b1 = MakeCpuBackend();
-  auto stage1 = Train(*data, *b1, s1);
+  const TrainConfig config = ShortStageOneConfig();
+  auto stage1 = TrainOnCpu(*data, config, kStage1);
   ASSERT_TRUE(stage1.ok()) << stage1.status().ToString();
   const size_t n = stage1->asset.gaussians.size();
 
   uint64_t adaptive_texels = 0;
   for (double fraction : {0.5, 1.0}) {
-    TrainerOptions s2;
-    s2.config = config;
-    s2.config.stage2.texel_budget_fraction = fraction;
-    s2.stages = kStage2;
-    auto b2 = MakeCpuBackend();
-    auto stage2 = Train(*data, *b2, s2, &stage1->asset);
+    TrainConfig budgeted = config;
+    budgeted.stage2.texel_budget_fraction = fraction;
+    auto stage2 = TrainOnCpu(*data, budgeted, kStage2, &stage1->asset);
     ASSERT_TRUE(stage2.ok()) << stage2.status().ToString();
     ASSERT_TRUE(stage2->asset.textures.has_value());
     const TextureHistogram h = ComputeTextureHistogram(*stage2->asset.textures);
@@ -130,24 +139,14 @@ TEST(TrainerLego, StageTwoWithoutTexturesFineTunesTheModel) {
   ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
   auto data = OpenLego(path);
   ASSERT_NE(data, nullptr);
-  TrainConfig config = SmallConfig();
-  config.stage1.coarse_iterations = 60;
-  config.stage1.fine_iterations = 20;
+  TrainConfig config = ShortStageOneConfig();
   config.stage2.textures = TextureMode::kNone;
-  TrainerOptions s1;
-  s1.config = config;
-  s1.stages = kStage1 | kStage2;
-  auto b1 = MakeCpuBackend();
-  auto stage1 = Train(*data, *b1, s1);
+  auto stage1 = TrainOnCpu(*data, config, kStage1 | kStage2);
   ASSERT_TRUE(stage1.ok()) << stage1.status().ToString();
   EXPECT_EQ(stage1->texture_steps, 0);
   EXPECT_FALSE(stage1->asset.textures.has_value());
 
-  TrainerOptions s2;
-  s2.config = config;
-  s2.stages = kStage2;
-  auto b2 = MakeCpuBackend();
-  auto stage2 = Train(*data, *b2, s2, &stage1->asset);
+  auto stage2 = TrainOnCpu(*data, config, kStage2, &stage1->asset);
   ASSERT_TRUE(stage2.ok()) << stage2.status().ToString();
   EXPECT_EQ(stage2->texture_steps, config.stage2.iterations);
   EXPECT_FALSE(stage2->asset.textures.has_value());

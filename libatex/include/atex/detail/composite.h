@@ -102,21 +102,16 @@ ATEX_HD SplatSample<T> EvaluateSplat(const SplatParams<T>& s, T px, T py, const 
       // coordinates get no gradient (the four taps are one texel): skip the ray–plane step.
       out.tc = {T(0), T(0), true, true};
       out.taps = {{0, 0, T(0)}, {0, 0, T(0)}};
-      if (s.constant != nullptr) {
-        out.texel = s.constant->raw;
-        alpha = base * s.constant->alpha_factor;
-        for (int ch = 0; ch < 3; ++ch) out.color[ch] += s.constant->color_residual[ch];
-      } else {
-        out.texel = LoadTexel(s.texels);
-        alpha = base * TextureAlphaFactor(out.texel[3]);
-        for (int ch = 0; ch < 3; ++ch) out.color[ch] += TextureColorResidual(out.texel[ch]);
-      }
+      out.texel = s.constant != nullptr ? s.constant->raw : LoadTexel(s.texels);
     } else {
       out.tc = ComputeTexCoord(*s.frame, ray);
       out.taps = MakeBilinearTaps(out.tc, s.tex_h, s.tex_w);
       out.texel = SampleTexels(s.texels, s.tex_w, out.taps);
-      alpha = base * TextureAlphaFactor(out.texel[3]);
-      for (int ch = 0; ch < 3; ++ch) out.color[ch] += TextureColorResidual(out.texel[ch]);
+    }
+    // s.constant holds exactly these activations of its texel, computed once per splat.
+    alpha = base * (s.constant != nullptr ? s.constant->alpha_factor : TextureAlphaFactor(out.texel[3]));
+    for (int ch = 0; ch < 3; ++ch) {
+      out.color[ch] += s.constant != nullptr ? s.constant->color_residual[ch] : TextureColorResidual(out.texel[ch]);
     }
   }
   out.alpha_clamped = alpha > T(kMaxSplatAlpha);

@@ -259,18 +259,25 @@ struct TileRect {
   ATEX_HD bool contains(int tx, int ty) const { return tx >= x0 && tx < x1 && ty >= y0 && ty < y1; }
 };
 
-// [clamp(floor((m − r)/16), 0, TX), clamp(floor((m + r)/16) + 1, 0, TX)) in x, likewise y.
-// Clamped in floating point before the conversion, so far-away centres cannot overflow.
+// The tiles of the box m ± (half_x, half_y):
+// [clamp(floor((m.x − half_x)/16), 0, TX), clamp(floor((m.x + half_x)/16) + 1, 0, TX)) in x,
+// likewise y. Clamped in floating point before the conversion, so far-away centres cannot overflow.
 template <typename T>
-ATEX_HD TileRect ComputeTileRect(const Vec2<T>& mean2d, T radius, int tiles_x, int tiles_y) {
+ATEX_HD TileRect TileRectOfBox(const Vec2<T>& mean2d, T half_x, T half_y, int tiles_x, int tiles_y) {
   const T inv_tile = T(1) / T(kTileSize);
   const T tx = T(tiles_x), ty = T(tiles_y);
   TileRect rect;
-  rect.x0 = static_cast<int>(ClampNanLow(Floor((mean2d[0] - radius) * inv_tile), T(0), tx));
-  rect.x1 = static_cast<int>(ClampNanLow(Floor((mean2d[0] + radius) * inv_tile) + T(1), T(0), tx));
-  rect.y0 = static_cast<int>(ClampNanLow(Floor((mean2d[1] - radius) * inv_tile), T(0), ty));
-  rect.y1 = static_cast<int>(ClampNanLow(Floor((mean2d[1] + radius) * inv_tile) + T(1), T(0), ty));
+  rect.x0 = static_cast<int>(ClampNanLow(Floor((mean2d[0] - half_x) * inv_tile), T(0), tx));
+  rect.x1 = static_cast<int>(ClampNanLow(Floor((mean2d[0] + half_x) * inv_tile) + T(1), T(0), tx));
+  rect.y0 = static_cast<int>(ClampNanLow(Floor((mean2d[1] - half_y) * inv_tile), T(0), ty));
+  rect.y1 = static_cast<int>(ClampNanLow(Floor((mean2d[1] + half_y) * inv_tile) + T(1), T(0), ty));
   return rect;
+}
+
+// The 3σ tile rectangle (conventions §4 step 5): the box m ± r.
+template <typename T>
+ATEX_HD TileRect ComputeTileRect(const Vec2<T>& mean2d, T radius, int tiles_x, int tiles_y) {
+  return TileRectOfBox(mean2d, radius, radius, tiles_x, tiles_y);
 }
 
 // The tiles a splat can reach (conventions §4 step 7). A sample passes the 1/255 alpha
@@ -290,18 +297,8 @@ ATEX_HD TileRect ContributionTileRect(const TileRect& rect, const Vec2<T>& mean2
   // 0.1 % and one pixel of slack cover float rounding in the per-pixel test.
   const T half_x = Sqrt(two_l * Max(cov2d[0], T(0))) * T(1.001) + T(1);
   const T half_y = Sqrt(two_l * Max(cov2d[2], T(0))) * T(1.001) + T(1);
-  const T inv_tile = T(1) / T(kTileSize);
-  const T tx = T(tiles_x), ty = T(tiles_y);
-  TileRect box;
-  box.x0 = static_cast<int>(ClampNanLow(Floor((mean2d[0] - half_x) * inv_tile), T(0), tx));
-  box.x1 = static_cast<int>(ClampNanLow(Floor((mean2d[0] + half_x) * inv_tile) + T(1), T(0), tx));
-  box.y0 = static_cast<int>(ClampNanLow(Floor((mean2d[1] - half_y) * inv_tile), T(0), ty));
-  box.y1 = static_cast<int>(ClampNanLow(Floor((mean2d[1] + half_y) * inv_tile) + T(1), T(0), ty));
-  TileRect out;
-  out.x0 = box.x0 > rect.x0 ? box.x0 : rect.x0;
-  out.y0 = box.y0 > rect.y0 ? box.y0 : rect.y0;
-  out.x1 = box.x1 < rect.x1 ? box.x1 : rect.x1;
-  out.y1 = box.y1 < rect.y1 ? box.y1 : rect.y1;
+  const TileRect box = TileRectOfBox(mean2d, half_x, half_y, tiles_x, tiles_y);
+  const TileRect out{Max(box.x0, rect.x0), Max(box.y0, rect.y0), Min(box.x1, rect.x1), Min(box.y1, rect.y1)};
   if (out.empty()) return {rect.x0, rect.y0, rect.x0, rect.y0};
   return out;
 }
