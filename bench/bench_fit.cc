@@ -102,6 +102,49 @@ void BM_FitStateFromAsset(benchmark::State& state) {
   }
 }
 
+// ApplyPlan when the move that crosses the budget is indivisible and lands far below it:
+// RefillSlack then undoes divisible moves (here texture and prune moves, latest first),
+// bisecting each one's count against the budget. The plan: texels f16, five texture
+// moves, one prune move, then sh_rest q8; the budget leaves the last move 60 % of its
+// saving as slack, more than the prune and last texture moves can take back.
+void BM_FitApplyPlanRefill(benchmark::State& state) {
+  const atex::Asset& asset = UniformModel();
+  atex::fit::Plan plan;
+  plan.prune_order = atex::fit::ImportanceOrder(asset, 6666);
+  auto add = [&](atex::fit::Lever lever, uint64_t count, atex::fit::Stream stream, atex::ScalarEncoding e) {
+    atex::fit::Move m;
+    m.lever = lever;
+    m.count = count;
+    m.stream = stream;
+    m.encoding = e;
+    plan.moves.push_back(m);
+  };
+  using atex::fit::Lever;
+  using atex::fit::Stream;
+  add(Lever::kEncoding, 0, Stream::kTexels, atex::ScalarEncoding::kFloat16);
+  for (int i = 0; i < 5; ++i) add(Lever::kTextures, kGaussians / 10, Stream::kPositions, {});
+  add(Lever::kPrune, kGaussians / 20, Stream::kPositions, {});
+  add(Lever::kEncoding, 0, Stream::kShRest, atex::ScalarEncoding::kQuant8);
+  // Record each move's size as BuildPlan would.
+  atex::Asset a = asset;
+  atex::WriteOptions write;
+  std::vector<uint32_t> kept(kGaussians);
+  std::iota(kept.begin(), kept.end(), 0u);
+  for (atex::fit::Move& m : plan.moves) {
+    if (!atex::fit::ApplyMove(m, plan.prune_order, &a, &write, &kept).ok()) state.SkipWithError("ApplyMove");
+    m.bytes_after = atex::EncodeAsset(a, write)->size();
+  }
+  const uint64_t before_last = plan.moves[plan.moves.size() - 2].bytes_after, last = plan.moves.back().bytes_after;
+  const uint64_t budget = last + (before_last - last) * 6 / 10;
+  for (auto _ : state) {
+    auto fitted = atex::fit::ApplyPlan(asset, plan, {}, budget);
+    if (!fitted.ok()) state.SkipWithError(fitted.status().ToString().c_str());
+    state.counters["slack_bytes"] = fitted.ok() ? static_cast<double>(budget - fitted->bytes.size()) : -1;
+    state.counters["moves_kept"] = fitted.ok() ? static_cast<double>(fitted->moves.size()) : -1;
+  }
+}
+
+BENCHMARK(BM_FitApplyPlanRefill)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
 BENCHMARK(BM_FitEncode)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_FitDecode)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_FitEncodeCachedOneStreamChanged)->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -181,6 +181,7 @@ int RunFit(const FitArgs& a) {
 
   fit::ProbeRenderer renderer(backend->backend.get(), probes);
   fit::Plan shared_plan;
+  nlohmann::json plan_timings = nlohmann::json::array();  // one per plan built (two with --finetune)
   const auto fit_once = [&](const Asset& start, const WriteOptions& start_write, uint64_t target,
                             bool quality_mode) -> StatusOr<fit::Fitted> {
     fit::PlanOptions o;
@@ -200,6 +201,7 @@ int RunFit(const FitArgs& a) {
     }
     ATEX_ASSIGN_OR_RETURN(fit::Plan plan, fit::BuildPlan(start, &renderer, o));
     shared_plan = plan;
+    plan_timings.push_back(fit::TimingToJson(plan.timing));
     const uint64_t goal = quality_mode ? (plan.moves.empty() ? plan.initial_bytes : plan.moves.back().bytes_after) : target;
     return fit::ApplyPlan(start, plan, start_write, goal);
   };
@@ -292,6 +294,7 @@ int RunFit(const FitArgs& a) {
   nlohmann::json moves = nlohmann::json::array();
   for (const fit::Move& m : result.moves) moves.push_back(fit::MoveToJson(m));
   report["moves"] = moves;
+  if (!plan_timings.empty()) report["plan_timing"] = plan_timings;
   if (!result.moves.empty()) {
     const double d = result.moves.back().distortion_after;
     report["estimated_psnr_vs_input"] = d > 0 ? -10.0 * std::log10(d) : 99.0;

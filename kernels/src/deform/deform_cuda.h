@@ -67,6 +67,13 @@ class DeformEngine {
   // FP32 GEMMs by default (parity with the CPU engine). Allowing TF32 tensor cores makes the MLP several
   // times faster at about 1e-3 relative precision (training only; parity tests keep it off).
   void set_allow_tf32(bool allow);
+  // Hidden layers run as one cuBLASLt GEMM with bias + ReLU in its epilogue (default), or
+  // as a cuBLAS GEMM followed by a bias + ReLU pass (the A/B and the fallback where
+  // cuBLASLt has no algorithm). Both compute the same function.
+  void set_fuse_bias_relu(bool fuse);
+  // How many hidden layers the last Forward ran fused and unfused.
+  int last_forward_fused_layers() const;
+  int last_forward_unfused_layers() const;
 
   // Deforms n canonical Gaussians to scene time `time` (mapped by the config's time_scale/offset).
   // Keeps what Backward needs in the engine's workspace (valid until the next Forward; Backward may be

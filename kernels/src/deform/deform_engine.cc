@@ -18,6 +18,7 @@
 #include "deform/deform_cuda.h"
 #include "deform/deform_internal.h"
 #include "deform/linear_gemm.h"
+#include "deform/linear_lt.h"
 #include "device_buffer.h"
 
 namespace atex::cuda {
@@ -75,6 +76,9 @@ struct DeformEngine::Impl {
   cublasHandle_t cublas = nullptr;
   cudaStream_t stream = nullptr;
   bool allow_tf32 = false;
+  bool fuse_bias_relu = true;
+  deform_detail::FusedLinearRelu fused_linear_relu;
+  int fused_layers = 0, unfused_layers = 0;  // of the last Forward
 
   // Kept from Forward for Backward.
   DeviceBuffer<float> features;        // [N][F]
@@ -82,6 +86,7 @@ struct DeformEngine::Impl {
   DeviceBuffer<float> hidden;          // [N][He*W] ReLU(head hidden layer), enabled heads side by side
   DeviceBuffer<float> packed_weight;   // [He*W][W] hidden-layer weights of the enabled heads
   DeviceBuffer<float> packed_bias;     // [He*W]
+  DeviceBuffer<float> trunk_bias;      // [L][W] the trunk biases, 16-byte aligned for the fused epilogue
   // Backward scratch.
   DeviceBuffer<float> d_hidden;        // [N][He*W]
   DeviceBuffer<float> d_act;           // [N][W]
@@ -139,8 +144,28 @@ Status DeformEngine::Impl::Forward(const DeformLayout& layout, const float* grid
     ATEX_RETURN_IF_ERROR(packed_weight.Resize(static_cast<size_t>(heads) * width * width));
     ATEX_RETURN_IF_ERROR(packed_bias.Resize(static_cast<size_t>(heads) * width));
 
+    ATEX_RETURN_IF_ERROR(trunk_bias.Resize(static_cast<size_t>(trunk_layers) * width));
+
     deform_detail::ScopedCublasSettings settings(cublas, stream, allow_tf32);
     ATEX_RETURN_IF_ERROR(settings.status());
+    fused_layers = unfused_layers = 0;
+    // y = ReLU(x W^T + b) over n rows (y: row stride `out`): one cuBLASLt GEMM with the bias
+    // and ReLU in its epilogue where cuBLASLt has an algorithm, else GEMM + a bias/ReLU pass.
+    auto linear_relu = [&](const float* w, int in, int out, const float* x, int ldx, const float* bias,
+                           float* y) -> Status {
+      bool fused = false;
+      if (fuse_bias_relu) {
+        ATEX_RETURN_IF_ERROR(
+            fused_linear_relu.Forward(w, in, out, x, ldx, n, bias, y, out, allow_tf32, stream, &fused));
+      }
+      if (fused) {
+        ++fused_layers;
+        return Status::Ok();
+      }
+      ++unfused_layers;
+      ATEX_RETURN_IF_ERROR(LinearForward(cublas, w, in, out, x, ldx, n, 0.0f, y, out));
+      return deform_detail::LaunchBiasRelu(y, bias, n, out, stream);
+    };
 
     const deform_detail::GridGeometry geometry = deform_detail::MakeGridGeometry(layout, time);
     ATEX_RETURN_IF_ERROR(
@@ -151,9 +176,10 @@ Status DeformEngine::Impl::Forward(const DeformLayout& layout, const float* grid
       const DeformLayout::Layer& layer = layout.trunk[l];
       const float* input = l == 0 ? features.data() : trunk_act.data() + (l - 1) * rows * width;
       float* output = trunk_act.data() + l * rows * width;
-      ATEX_RETURN_IF_ERROR(LinearForward(cublas, mlp + layer.weight, layer.in, layer.out, input, layer.in, n, 0.0f,
-                                         output, width));
-      ATEX_RETURN_IF_ERROR(deform_detail::LaunchBiasRelu(output, mlp + layer.bias, n, width, stream));
+      float* bias = trunk_bias.data() + static_cast<size_t>(l) * width;
+      ATEX_CUDA_RETURN_IF_ERROR(
+          cudaMemcpyAsync(bias, mlp + layer.bias, sizeof(float) * width, cudaMemcpyDeviceToDevice, stream));
+      ATEX_RETURN_IF_ERROR(linear_relu(mlp + layer.weight, layer.in, width, input, layer.in, bias, output));
     }
     const float* head_input = trunk_act.data() + (trunk_layers - 1) * rows * width;
 
@@ -171,9 +197,8 @@ Status DeformEngine::Impl::Forward(const DeformLayout& layout, const float* grid
                                                   stream));
         ++e;
       }
-      ATEX_RETURN_IF_ERROR(LinearForward(cublas, packed_weight.data(), width, packed, head_input, width, n, 0.0f,
-                                         hidden.data(), packed));
-      ATEX_RETURN_IF_ERROR(deform_detail::LaunchBiasRelu(hidden.data(), packed_bias.data(), n, packed, stream));
+      ATEX_RETURN_IF_ERROR(
+          linear_relu(packed_weight.data(), width, packed, head_input, width, packed_bias.data(), hidden.data()));
     }
 
     // Outputs: enabled heads add their residual, disabled ones copy.
@@ -338,6 +363,11 @@ DeformEngine::~DeformEngine() = default;
 
 void DeformEngine::set_allow_tf32(bool allow) { impl_->allow_tf32 = allow; }
 
+void DeformEngine::set_fuse_bias_relu(bool fuse) { impl_->fuse_bias_relu = fuse; }
+
+int DeformEngine::last_forward_fused_layers() const { return impl_->fused_layers; }
+int DeformEngine::last_forward_unfused_layers() const { return impl_->unfused_layers; }
+
 Status DeformEngine::Forward(const DeformLayout& layout, const float* grid, const float* mlp, int n, int sh_coeffs,
                              float time, const GaussianTensors& canonical, const GaussianTensors& deformed) {
   return impl_->Forward(layout, grid, mlp, n, sh_coeffs, time, canonical, deformed);
@@ -373,8 +403,9 @@ Status DeformEngine::Regularizer(const DeformLayout& layout, const float* grid, 
 size_t DeformEngine::workspace_bytes() const {
   const Impl& i = *impl_;
   return i.features.bytes() + i.trunk_act.bytes() + i.hidden.bytes() + i.packed_weight.bytes() +
-         i.packed_bias.bytes() + i.d_hidden.bytes() + i.d_act.bytes() + i.d_act_next.bytes() + i.d_features.bytes() +
-         i.d_packed_weight.bytes() + i.d_packed_bias.bytes() + i.accumulator.bytes();
+         i.packed_bias.bytes() + i.trunk_bias.bytes() + i.d_hidden.bytes() + i.d_act.bytes() + i.d_act_next.bytes() + i.d_features.bytes() +
+         i.d_packed_weight.bytes() + i.d_packed_bias.bytes() + i.accumulator.bytes() +
+         i.fused_linear_relu.workspace_bytes();
 }
 
 }  // namespace atex::cuda

@@ -114,7 +114,20 @@ struct PlanOptions {
   std::function<StatusOr<bool>(const Asset& decoded, const Move& move)> accept_more;
 };
 
+// Where the plan's time went: every measurement of a state (the initial one and each
+// candidate move) encodes, decodes and renders the probes. Wall seconds, summed.
+struct MeasureTiming {
+  int measurements = 0;
+  double apply_seconds = 0;       // applying candidate moves to a copy of the state
+  double encode_seconds = 0;      // EncodeAsset (through the chunk cache)
+  double decode_seconds = 0;      // DecodeAsset of those bytes
+  double render_seconds = 0;      // probe renders: backend load + one render per probe
+  double distortion_seconds = 0;  // MeanSquaredError against the reference renders
+};
+nlohmann::json TimingToJson(const MeasureTiming& timing);
+
 struct Plan {
+  MeasureTiming timing;
   uint64_t initial_bytes = 0;
   double initial_distortion = 0;  // of the input re-encoded with the starting encodings (0 for lossless)
   std::vector<Move> moves;
@@ -154,10 +167,11 @@ struct Fitted {
 
 // Applies moves of `plan` in order until the encoded asset fits `budget_bytes`; the
 // last move, if divisible, is bisected so that as little as needed is removed; if it is
-// indivisible, divisible moves before it are undone, latest first, until one is only partly
-// undone (the budget binds) or none is left, to spend the slack again. Fails with
-// kOutOfRange when even the whole plan does not fit (the message names the smallest
-// size reached).
+// indivisible, the moves before it are undone, latest first, to spend the slack again: a
+// divisible one is bisected on its count (the refill stops where one is only partly undone
+// or needed whole: the budget binds), an indivisible one is undone whole when the output
+// without it still fits. Fails with kOutOfRange when even the whole plan does not fit (the
+// message names the smallest size reached).
 StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes);
 
 // Keeps the ceil(fraction · N) most important Gaussians of `order` (ascending

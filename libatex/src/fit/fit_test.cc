@@ -158,6 +158,14 @@ TEST(Plan, UsesEveryLeverAndShrinksMonotonically) {
   }
   // The plan reaches within a few percent of the smallest valid asset.
   EXPECT_LE(f.plan.moves.back().bytes_after, f.minimum * 11 / 10 + 512);
+  // Every accepted move was measured (plus the initial state), and the measured parts took time.
+  const MeasureTiming& t = f.plan.timing;
+  EXPECT_GE(t.measurements, static_cast<int>(f.plan.moves.size()) + 1);
+  EXPECT_GT(t.render_seconds, 0.0);
+  EXPECT_GT(t.encode_seconds, 0.0);
+  const nlohmann::json j = TimingToJson(t);
+  EXPECT_EQ(j["measurements"], t.measurements);
+  EXPECT_DOUBLE_EQ(j["seconds_per_measurement"]["render"].get<double>(), t.render_seconds / t.measurements);
 }
 
 TEST(Plan, ThousandRandomBudgetsNeverOver) {
@@ -300,6 +308,51 @@ TEST(Plan, SlackBelowAnIndivisibleMoveReachesEarlierDivisibleMoves) {
   ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
   EXPECT_TRUE(ValidateAsset(*decoded).ok());
   EXPECT_EQ(fitted->kept.size(), decoded->gaussians.size());
+}
+
+TEST(Plan, SlackIsSpentOnAnEarlierIndivisibleMoveThatFits) {
+  // sh_dc to q8 (A), rotations to q16 (B), then sh_rest to q8 (C, crossing the budget and
+  // landing far below it). Without B the output still fits; without A as well it would not:
+  // B is undone (the latest first), A is kept.
+  Asset asset = SmallAsset(container::SyntheticTextures::kNone, 59);
+  WriteOptions write;
+  write.write_stats = false;
+  const auto encoding = [](Stream stream, ScalarEncoding e) {
+    Move m;
+    m.lever = Lever::kEncoding;
+    m.stream = stream;
+    m.encoding = e;
+    return m;
+  };
+  const Move a = encoding(Stream::kShDc, ScalarEncoding::kQuant8);
+  const Move b = encoding(Stream::kRotations, ScalarEncoding::kQuant16);
+  const Move c = encoding(Stream::kShRest, ScalarEncoding::kQuant8);
+  Plan plan;
+  plan.prune_order = ImportanceOrder(asset, 6666);
+  plan.moves = {a, b, c};
+  plan.initial_bytes = SizeAfter(asset, plan, write, {});
+  for (size_t i = 0; i < plan.moves.size(); ++i) {
+    plan.moves[i].bytes_after = SizeAfter(asset, plan, write, {plan.moves.begin(), plan.moves.begin() + i + 1});
+  }
+  const uint64_t without_b = SizeAfter(asset, plan, write, {a, c});
+  const uint64_t only_c = SizeAfter(asset, plan, write, {c});
+  const uint64_t budget = without_b + (only_c - without_b) / 2;
+  ASSERT_LT(plan.moves[2].bytes_after, without_b);
+  ASSERT_LT(without_b, budget);
+  ASSERT_LT(budget, only_c);
+  ASSERT_LT(budget, plan.moves[1].bytes_after) << "C is the move that crosses the budget";
+
+  auto fitted = ApplyPlan(asset, plan, write, budget);
+  ASSERT_TRUE(fitted.ok()) << fitted.status().ToString();
+  EXPECT_EQ(fitted->bytes.size(), without_b);
+  ASSERT_EQ(fitted->moves.size(), 2u);
+  EXPECT_EQ(fitted->moves[0].stream, Stream::kShDc);
+  EXPECT_EQ(fitted->moves[1].stream, Stream::kShRest);
+  EXPECT_EQ(fitted->write.rotations, write.rotations) << "B undone: rotations keep their starting encoding";
+  EXPECT_EQ(fitted->moves.back().bytes_after, fitted->bytes.size());
+  auto decoded = DecodeAsset(fitted->bytes.data(), fitted->bytes.size());
+  ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+  EXPECT_TRUE(ValidateAsset(*decoded).ok());
 }
 
 TEST(Plan, NoUnitOfSlackLeftBelowAnIndivisibleLastMove) {

@@ -1,6 +1,7 @@
 // The fitter's plan: greedy rate–distortion search over the levers (fit.h), and
 // applying a plan to a budget.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -72,6 +73,16 @@ std::string DescribeMove(const Move& m) {
     case Lever::kGrid: return "halve the deformation grid resolution";
   }
   return "unknown move";
+}
+
+nlohmann::json TimingToJson(const MeasureTiming& t) {
+  const double per = t.measurements > 0 ? 1.0 / t.measurements : 0.0;
+  return {{"measurements", t.measurements},
+          {"seconds", {{"apply", t.apply_seconds}, {"encode", t.encode_seconds}, {"decode", t.decode_seconds},
+                       {"render", t.render_seconds}, {"distortion", t.distortion_seconds}}},
+          {"seconds_per_measurement",
+           {{"apply", t.apply_seconds * per}, {"encode", t.encode_seconds * per}, {"decode", t.decode_seconds * per},
+            {"render", t.render_seconds * per}, {"distortion", t.distortion_seconds * per}}}};
 }
 
 nlohmann::json MoveToJson(const Move& m) {
@@ -209,6 +220,20 @@ Status CheckBudget(const Asset& asset, const WriteOptions& write, uint64_t budge
 
 namespace {
 
+// Seconds since construction or the previous Lap.
+class Stopwatch {
+ public:
+  double Lap() {
+    const auto now = std::chrono::steady_clock::now();
+    const double seconds = std::chrono::duration<double>(now - last_).count();
+    last_ = now;
+    return seconds;
+  }
+
+ private:
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
+
 struct State {
   Asset asset;
   WriteOptions write;
@@ -223,13 +248,19 @@ struct Measured {
 // Encodes (exact bytes; unchanged chunks come from the cache), decodes (exact stored
 // values) and renders the probes.
 StatusOr<Measured> Measure(const State& state, ProbeRenderer* renderer, const std::vector<Image>& reference,
-                           EncodeCache* cache, Asset* decoded_out = nullptr) {
+                           EncodeCache* cache, MeasureTiming* timing, Asset* decoded_out = nullptr) {
+  ++timing->measurements;
+  Stopwatch clock;
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(state.asset, state.write, cache));
+  timing->encode_seconds += clock.Lap();
   ReadOptions read;
   read.read_stats = false;
   ATEX_ASSIGN_OR_RETURN(Asset decoded, DecodeAsset(bytes.data(), bytes.size(), read));
+  timing->decode_seconds += clock.Lap();
   ATEX_ASSIGN_OR_RETURN(std::vector<Image> renders, renderer->Render(decoded));
+  timing->render_seconds += clock.Lap();
   ATEX_ASSIGN_OR_RETURN(double mse, MeanSquaredError(renders, reference));
+  timing->distortion_seconds += clock.Lap();
   if (decoded_out != nullptr) *decoded_out = std::move(decoded);
   return Measured{bytes.size(), mse};
 }
@@ -309,7 +340,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   // Most candidates change one or two chunks of the current state; the others are
   // compressed once, not once per candidate.
   EncodeCache chunks;
-  ATEX_ASSIGN_OR_RETURN(Measured current, Measure(state, renderer, reference, &chunks));
+  ATEX_ASSIGN_OR_RETURN(Measured current, Measure(state, renderer, reference, &chunks, &plan.timing));
   plan.initial_bytes = current.bytes;
   plan.initial_distortion = current.distortion;
 
@@ -334,13 +365,13 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   const auto evaluate = [&](const Move& proposal) -> StatusOr<Evaluated> {
     Evaluated e;
     e.cost = Cached{kNoGain, 0, true};
+    Stopwatch clock;
     e.next = state;
-    if (!ApplyMove(proposal, plan.prune_order, &e.next.asset, &e.next.write, &e.next.kept,
-                   options.min_grid_resolution)
-             .ok()) {
-      return e;  // a move the state cannot take (e.g. nothing left to halve) is not a move
-    }
-    auto measured = Measure(e.next, renderer, reference, &chunks, &e.decoded);
+    const Status applied = ApplyMove(proposal, plan.prune_order, &e.next.asset, &e.next.write, &e.next.kept,
+                                     options.min_grid_resolution);
+    plan.timing.apply_seconds += clock.Lap();
+    if (!applied.ok()) return e;  // a move the state cannot take (e.g. nothing left to halve) is not a move
+    auto measured = Measure(e.next, renderer, reference, &chunks, &plan.timing, &e.decoded);
     if (!measured.ok()) {
       // A stream that an encoding cannot hold (f16 overflow) is simply not a move.
       if (measured.status().code() == StatusCode::kOutOfRange) return e;
@@ -420,20 +451,25 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
 
 namespace {
 
-// Replays `moves` on `asset` with the count of moves[k] replaced by `count_k` (0: skipped).
-StatusOr<State> Replay(const Asset& asset, const Plan& plan, const WriteOptions& write, const std::vector<Move>& moves,
-                       size_t k, uint64_t count_k) {
-  State s{asset, write, {}};
-  s.kept.resize(asset.gaussians.size());
-  std::iota(s.kept.begin(), s.kept.end(), 0u);
-  for (size_t i = 0; i < moves.size(); ++i) {
+// The state after moves[begin, end) applied to `start`; moves[k] (if in range) with its count
+// replaced by `count_k` (0: skipped).
+StatusOr<State> ApplyRange(State start, const Plan& plan, const std::vector<Move>& moves, size_t begin, size_t end,
+                           size_t k, uint64_t count_k) {
+  for (size_t i = begin; i < end; ++i) {
     Move m = moves[i];
     if (i == k) {
       if (count_k == 0) continue;
       m.count = count_k;
     }
-    ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &s.asset, &s.write, &s.kept));
+    ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &start.asset, &start.write, &start.kept));
   }
+  return start;
+}
+
+State InitialState(const Asset& asset, const WriteOptions& write) {
+  State s{asset, write, {}};
+  s.kept.resize(asset.gaussians.size());
+  std::iota(s.kept.begin(), s.kept.end(), 0u);
   return s;
 }
 
@@ -447,15 +483,17 @@ struct Refill {
 
 // The smallest count of moves[k] (the other moves as they are) whose output fits `budget`,
 // found by bisection on [0, count); the recorded count is known to fit. nullopt when no
-// smaller count fits (the whole move is needed).
+// smaller count fits (the whole move is needed). The moves before k are applied once, not
+// once per trial: a texture move on a large asset takes most of a second to apply.
 StatusOr<std::optional<Refill>> SmallestFittingCount(const Asset& asset, const Plan& plan, const WriteOptions& write,
                                                      const std::vector<Move>& moves, size_t k, uint64_t budget,
                                                      EncodeCache* cache) {
+  ATEX_ASSIGN_OR_RETURN(const State prefix, ApplyRange(InitialState(asset, write), plan, moves, 0, k, moves.size(), 0));
   uint64_t lo = 0, hi = moves[k].count;
   std::optional<Refill> best;
   while (lo < hi) {
     const uint64_t mid = lo + (hi - lo) / 2;
-    ATEX_ASSIGN_OR_RETURN(State trial, Replay(asset, plan, write, moves, k, mid));
+    ATEX_ASSIGN_OR_RETURN(State trial, ApplyRange(prefix, plan, moves, k, moves.size(), k, mid));
     ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, EncodeAsset(trial.asset, trial.write, cache));
     if (trial_bytes.size() <= budget) {
       hi = mid;
@@ -467,21 +505,29 @@ StatusOr<std::optional<Refill>> SmallestFittingCount(const Asset& asset, const P
   return best;
 }
 
-// After an indivisible last move: gives the slack below the budget back by undoing divisible
-// moves, latest first. Each one's count is lowered to the smallest that still fits; when even
-// count 0 fits (the move is undone entirely and slack remains), the move is dropped and the next
-// earlier divisible move is tried, until one is only partly undone (the budget binds there) or
-// no divisible move is left. Every state taken was encoded and fits, so the output stays within
-// the budget.
+// After an indivisible last move: gives the slack below the budget back by undoing the moves
+// before it, latest first (the plan took moves cheapest first, so the latest ones did the
+// most damage per byte). A divisible move's count is lowered to the smallest that still
+// fits; when even count 0 fits (the move is undone entirely and slack remains), the move is
+// dropped and the next earlier move is tried; when it is needed whole, or only partly undone,
+// the budget binds there and the refill stops. An indivisible move (an encoding, the SH
+// degree, the grid) is undone whole when the output without it still fits and grows, else
+// skipped. Every state taken was encoded and fits, so the output stays within the budget.
 Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
                    std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache) {
   std::optional<size_t> earliest_changed;  // index (after any removals) of the earliest move changed
-  size_t end = moves->size();              // divisible moves are looked for before this index
-  while (true) {
-    size_t k = end;  // the latest divisible move before `end`
-    while (k > 0 && !(*moves)[k - 1].divisible()) --k;
-    if (k == 0) break;  // no divisible move left to undo
-    --k;
+  for (size_t k = moves->size() - 1; k-- > 0;) {  // every move before the last, latest first
+    if (!(*moves)[k].divisible()) {
+      auto trial = ApplyRange(InitialState(asset, write), plan, *moves, 0, moves->size(), k, 0);
+      if (!trial.ok()) continue;  // the moves after it do not apply without it: keep it
+      auto trial_bytes = EncodeAsset(trial->asset, trial->write, cache);
+      if (!trial_bytes.ok() || trial_bytes->size() > budget || trial_bytes->size() <= bytes->size()) continue;
+      *state = std::move(*trial);
+      *bytes = std::move(*trial_bytes);
+      moves->erase(moves->begin() + static_cast<std::ptrdiff_t>(k));
+      earliest_changed = k;
+      continue;
+    }
     ATEX_ASSIGN_OR_RETURN(std::optional<Refill> refill,
                           SmallestFittingCount(asset, plan, write, *moves, k, budget, cache));
     if (!refill) break;  // move k is needed whole: the budget binds here
@@ -494,14 +540,11 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
     }
     // Undone entirely and still under budget: drop it and spend the rest on an earlier move.
     moves->erase(moves->begin() + static_cast<std::ptrdiff_t>(k));
-    end = k;
   }
   if (!earliest_changed) return Status::Ok();
   // The sizes recorded for the earliest changed move and later ones belong to the plan; measure
   // the real ones. (Their distortion stays the plan's estimate: ApplyPlan does not render.)
-  State replay{asset, write, {}};
-  replay.kept.resize(asset.gaussians.size());
-  std::iota(replay.kept.begin(), replay.kept.end(), 0u);
+  State replay = InitialState(asset, write);
   for (size_t i = 0; i < moves->size(); ++i) {
     ATEX_RETURN_IF_ERROR(ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept));
     if (i >= *earliest_changed) {
@@ -560,7 +603,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
     out.moves.push_back(last);
     if (!last.divisible()) {
       // An indivisible last move (an encoding, the SH degree, the grid) can land far below the
-      // budget; give the slack back by undoing divisible moves before it, latest first.
+      // budget; give the slack back by undoing moves before it, latest first.
       ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes, &cache));
     }
   }

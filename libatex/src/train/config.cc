@@ -45,7 +45,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(LearningRates, position, sh_dc, 
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(DensifyConfig, enabled, from_step, until_step, interval,
                                                 grad_threshold, percent_dense, min_opacity, opacity_reset_interval,
                                                 opacity_reset_in_fine, max_screen_radius, max_world_scale_fraction,
-                                                max_gaussians)
+                                                max_gaussians, min_observing_cameras)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RegularizerConfig, plane_tv, time_smoothness, time_l1)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(InitVolumeConfig, far, uniform_depth, max_colour_spread,
                                                 attempts_per_point)

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include <Eigen/Geometry>
 
@@ -22,12 +23,22 @@ float Sigmoid(float x) { return 1.0f / (1.0f + std::exp(-x)); }
 
 StatusOr<GaussianEdit> PlanDensification(const Gaussians& canonical, const DensifyStats& stats,
                                          const DensifyConfig& config, double extent, bool prune_screen_size,
-                                         uint64_t seed, DensifyReport* report) {
+                                         uint64_t seed, DensifyReport* report,
+                                         const std::vector<uint16_t>* observing_cameras) {
   const size_t n = canonical.size();
   if (stats.grad_norm_sum.size() != n || stats.visible_count.size() != n || stats.max_radius.size() != n) {
     return MakeError(StatusCode::kInvalidArgument, "densification statistics have ", stats.grad_norm_sum.size(),
                      " entries for ", n, " Gaussians");
   }
+  const bool check_observers = config.min_observing_cameras > 0;
+  if (check_observers && (!observing_cameras || observing_cameras->size() != n)) {
+    return MakeError(StatusCode::kInvalidArgument, "min_observing_cameras is ", config.min_observing_cameras,
+                     " but the observer counts have ", observing_cameras ? observing_cameras->size() : 0,
+                     " entries for ", n, " Gaussians");
+  }
+  auto under_observed = [&](size_t i) {
+    return check_observers && (*observing_cameras)[i] < config.min_observing_cameras;
+  };
   const double size_limit = config.percent_dense * extent;
   const size_t room = config.max_gaussians > n ? config.max_gaussians - n : 0;
 
@@ -44,6 +55,7 @@ StatusOr<GaussianEdit> PlanDensification(const Gaussians& canonical, const Densi
   }
   auto prune = [&](size_t i) {
     if (Sigmoid(canonical.opacity_logits[i]) < config.min_opacity) return true;
+    if (under_observed(i)) return true;
     if (prune_screen_size) {
       if (config.max_screen_radius > 0 && stats.max_radius[i] > config.max_screen_radius) return true;
       if (config.max_world_scale_fraction > 0 && MaxScale(canonical, i) > config.max_world_scale_fraction * extent) {
@@ -88,7 +100,7 @@ StatusOr<GaussianEdit> PlanDensification(const Gaussians& canonical, const Densi
     keep(i, true);
   }
   for (size_t i : splits) {
-    if (Sigmoid(canonical.opacity_logits[i]) < config.min_opacity) {
+    if (Sigmoid(canonical.opacity_logits[i]) < config.min_opacity || under_observed(i)) {
       ++local.pruned;  // 3DGS prunes after densifying: both children would go at once
       continue;
     }
@@ -115,6 +127,25 @@ StatusOr<GaussianEdit> PlanDensification(const Gaussians& canonical, const Densi
   local.after = edit.source.size();
   if (report) *report = local;
   return edit;
+}
+
+std::vector<uint16_t> CountObservingCameras(const Gaussians& canonical, const std::vector<Camera>& cameras,
+                                            float near_plane) {
+  const size_t n = canonical.size();
+  std::vector<uint16_t> count(n, 0);
+  for (const Camera& camera : cameras) {
+    const auto& m = camera.world_to_camera;
+    for (size_t i = 0; i < n; ++i) {
+      const double x = canonical.positions[i * 3], y = canonical.positions[i * 3 + 1], z = canonical.positions[i * 3 + 2];
+      const double cz = m[8] * x + m[9] * y + m[10] * z + m[11];
+      if (!(cz > near_plane)) continue;
+      const double cx = m[0] * x + m[1] * y + m[2] * z + m[3];
+      const double cy = m[4] * x + m[5] * y + m[6] * z + m[7];
+      const double u = camera.fx * cx / cz + camera.cx, v = camera.fy * cy / cz + camera.cy;
+      if (u >= 0 && u < camera.width && v >= 0 && v < camera.height && count[i] < UINT16_MAX) ++count[i];
+    }
+  }
+  return count;
 }
 
 GaussianEdit PlanPrune(const Gaussians& canonical, const std::vector<uint8_t>& remove) {

@@ -59,6 +59,10 @@ struct DensifyConfig {
   double max_screen_radius = 0;         // pixels; 0 = no screen-size pruning
   double max_world_scale_fraction = 0.1;  // prune largest scale > this x extent; 0 = off
   size_t max_gaussians = 360000;   // densification stops adding beyond this (4DGaussians' cap)
+  // [choice, not in 4DGaussians] prune, at every densification step, Gaussians whose canonical
+  // centre is inside fewer than this many distinct training cameras' views (CountObservingCameras,
+  // densify.h). 0 = off.
+  int min_observing_cameras = 0;
 };
 
 struct RegularizerConfig {
