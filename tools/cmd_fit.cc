@@ -1,6 +1,7 @@
 // `atex fit IN OUT`: trim an asset to a byte budget, a Gaussian count or a quality
 // floor. Thin front end over atex/fit.h (the method is described there and in docs/fit.md).
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -115,6 +116,15 @@ int RunFit(const FitArgs& a) {
   }
   const uint64_t budget = budgets.empty() ? 0 : *std::min_element(budgets.begin(), budgets.end());
 
+  // Wall seconds per phase, for the report: where a long fit spends its time.
+  nlohmann::json phase_seconds = nlohmann::json::object();
+  auto phase_start = std::chrono::steady_clock::now();
+  const auto phase_done = [&](const char* name) {
+    const auto now = std::chrono::steady_clock::now();
+    phase_seconds[name] = phase_seconds.value(name, 0.0) + std::chrono::duration<double>(now - phase_start).count();
+    phase_start = now;
+  };
+
   auto input_bytes = ReadFileBytes(a.input);
   if (!input_bytes.ok()) return cli::Fail(cmd, input_bytes.status().WithContext(a.input));
   auto decoded = DecodeAsset(input_bytes->data(), input_bytes->size());
@@ -124,6 +134,7 @@ int RunFit(const FitArgs& a) {
   base.write_stats = a.keep_stats;
   auto write = fit::EncodingsOfFile(input_bytes->data(), input_bytes->size(), base);
   if (!write.ok()) return cli::Fail(cmd, write.status().WithContext(a.input));
+  phase_done("read_input");
 
   auto backend = cli::SelectBackend(a.backend);
   if (!backend.ok()) return cli::Fail(cmd, backend.status());
@@ -144,6 +155,7 @@ int RunFit(const FitArgs& a) {
     probes = fit::OrbitProbes(input, a.probes, a.probe_size, std::max(1, a.probe_size * 3 / 4));
   }
   if (Status s = fit::EnsureImportance(&input, probes); !s.ok()) return cli::Fail(cmd, s);
+  phase_done("backend_dataset_probes");
 
   nlohmann::json report;
   report["input"] = {{"path", a.input}, {"bytes", input_bytes->size()}, {"components", fit::ComponentsToJson(*input_bytes)}};
@@ -156,6 +168,7 @@ int RunFit(const FitArgs& a) {
     auto before = EvaluateAsset(*dataset, *backend->backend, input, eval_views);
     if (!before.ok()) return cli::Fail(cmd, before.status());
     report["input"]["test"] = MetricsJson(*before);
+    phase_done("evaluate_input");
   }
 
   // Fixed-count protocol first (it may be combined with a budget).
@@ -212,6 +225,7 @@ int RunFit(const FitArgs& a) {
     if (!fitted.ok()) return cli::Fail(cmd, fitted.status());
     for (uint32_t& k : fitted->kept) k = kept[k];  // back to input indices
     result = std::move(*fitted);
+    phase_done("plan_and_apply");
   } else {
     auto bytes = EncodeAsset(working, *write);
     if (!bytes.ok()) return cli::Fail(cmd, bytes.status());
@@ -253,6 +267,7 @@ int RunFit(const FitArgs& a) {
     report["finetune"] = {{"steps", a.finetune}, {"seconds", tuned->textures_seconds},
                           {"refit_moves", refit->moves.size()}};
     result = std::move(*refit);
+    phase_done("finetune_and_refit");
   }
 
   const auto output_for = [&](size_t k) {
@@ -286,6 +301,7 @@ int RunFit(const FitArgs& a) {
   const std::string output_path = output_for(smallest_index);
   if (Status s = WriteFileAtomic(output_path, result.bytes); !s.ok()) return cli::Fail(cmd, s.WithContext(output_path));
   if (!others.empty()) report["other_budgets"] = others;
+  phase_done("other_budgets_and_write");
 
   report["output"] = {{"path", output_path}, {"bytes", result.bytes.size()}, {"components", fit::ComponentsToJson(result.bytes)}};
   if (!a.budget.empty()) report["budget_bytes"] = budget;
@@ -303,7 +319,9 @@ int RunFit(const FitArgs& a) {
     auto after = EvaluateAsset(*dataset, *backend->backend, result.asset, eval_views);
     if (!after.ok()) return cli::Fail(cmd, after.status());
     report["output"]["test"] = MetricsJson(*after);
+    phase_done("evaluate_output");
   }
+  report["seconds"] = phase_seconds;
   if (a.json) {
     cli::PrintJson(report);
   } else {

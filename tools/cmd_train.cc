@@ -156,7 +156,7 @@ atex::cli::Runner SetupTrain(CLI::App& app) {
   auto a = std::make_shared<TrainArgs>();
   app.add_option("--data", a->data, "Dataset folder (Panoptic, D-NeRF, N3DV) or the tiny-lego .npz");
   app.add_option("--out,-o", a->out, "Output .atex");
-  app.add_option("--config", a->config_file, "JSON training config (see configs/; --print-config shows the defaults)");
+  app.add_option("--config", a->config_file, "JSON training config (a copy of --print-config's output, changed)");
   app.add_option("--set", a->overrides, "Override one config value, e.g. --set stage1.batch_size=2 (repeatable)");
   app.add_option("--stage", a->stage, "1 (4DGS), 2 (textures on --init), or all")->capture_default_str();
   app.add_option("--textures", a->textures,

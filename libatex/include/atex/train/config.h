@@ -1,7 +1,7 @@
 // Training configuration: every value of both stages, loadable from JSON and
 // overridable key by key ("stage1.batch_size=2"). The defaults are 4DGaussians'
 // schedule (REFERENCE.md §1) for stage 1 and the AdaTex4D paper (§2) for stage 2;
-// configs/*.json hold the same values per dataset for users to copy.
+// `atex train --print-config` writes them as JSON per dataset for users to copy.
 #pragma once
 
 #include <array>
