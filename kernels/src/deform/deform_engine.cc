@@ -403,8 +403,8 @@ Status DeformEngine::Regularizer(const DeformLayout& layout, const float* grid, 
 size_t DeformEngine::workspace_bytes() const {
   const Impl& i = *impl_;
   return i.features.bytes() + i.trunk_act.bytes() + i.hidden.bytes() + i.packed_weight.bytes() +
-         i.packed_bias.bytes() + i.trunk_bias.bytes() + i.d_hidden.bytes() + i.d_act.bytes() + i.d_act_next.bytes() + i.d_features.bytes() +
-         i.d_packed_weight.bytes() + i.d_packed_bias.bytes() + i.accumulator.bytes() +
+         i.packed_bias.bytes() + i.trunk_bias.bytes() + i.d_hidden.bytes() + i.d_act.bytes() + i.d_act_next.bytes() +
+         i.d_features.bytes() + i.d_packed_weight.bytes() + i.d_packed_bias.bytes() + i.accumulator.bytes() +
          i.fused_linear_relu.workspace_bytes();
 }
 

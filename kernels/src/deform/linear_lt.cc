@@ -7,8 +7,8 @@
 namespace atex::cuda::deform_detail {
 namespace {
 
-// cuBLASLt recommends 32 MiB of workspace on Hopper; the MLP's GEMMs pick split-K
-// algorithms that need some for the narrow layers.
+// The workspace cuBLASLt's documentation recommends for Hopper; some algorithms (split-K)
+// are only offered when the preference allows a workspace.
 constexpr size_t kWorkspaceBytes = size_t{32} << 20;
 // Densification changes N every 100 steps; older plans are dropped beyond this many.
 constexpr size_t kMaxPlans = 32;
@@ -93,6 +93,7 @@ Status FusedLinearRelu::Forward(const float* w, int in, int out, const float* x,
     if (p.in == in && p.out == out && p.rows == rows && p.ldx == ldx && p.ldy == ldy && p.tf32 == allow_tf32 &&
         p.alignments == alignments) {
       plan = &p;
+      break;
     }
   }
   if (!plan) {

@@ -34,8 +34,8 @@ class FusedLinearRelu {
   size_t workspace_bytes() const { return workspace_.bytes(); }
 
  private:
-  // One heuristic answer per problem: the query costs tens of microseconds of host time,
-  // about as much as the GEMM itself at small N.
+  // One heuristic answer per problem shape, so that the heuristic query is not repeated on
+  // every call (the shapes change only when densification changes N).
   struct Plan {
     int in, out, rows, ldx, ldy;
     bool tf32;

@@ -482,9 +482,10 @@ struct Refill {
 };
 
 // The smallest count of moves[k] (the other moves as they are) whose output fits `budget`:
-// 0 if that fits, else found by bisection on [1, count); the recorded count is known to fit. nullopt when no
-// smaller count fits (the whole move is needed). The moves before k are applied once, not
-// once per trial: a texture move on a large asset takes most of a second to apply.
+// 0 if that fits, else found by bisection on [1, count); the recorded count is known to
+// fit. nullopt when no smaller count fits (the whole move is needed). The moves before k
+// are applied once, not once per trial: a texture move on a large asset takes most of a
+// second to apply.
 StatusOr<std::optional<Refill>> SmallestFittingCount(const Asset& asset, const Plan& plan, const WriteOptions& write,
                                                      const std::vector<Move>& moves, size_t k, uint64_t budget,
                                                      EncodeCache* cache) {
@@ -492,7 +493,9 @@ StatusOr<std::optional<Refill>> SmallestFittingCount(const Asset& asset, const P
   // With a large slack the move is usually undone entirely: one trial instead of a bisection.
   ATEX_ASSIGN_OR_RETURN(State without, ApplyRange(prefix, plan, moves, k, moves.size(), k, 0));
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> without_bytes, EncodeAsset(without.asset, without.write, cache));
-  if (without_bytes.size() <= budget) return std::optional<Refill>(Refill{0, std::move(without), std::move(without_bytes)});
+  if (without_bytes.size() <= budget) {
+    return std::optional<Refill>(Refill{0, std::move(without), std::move(without_bytes)});
+  }
   uint64_t lo = 1, hi = moves[k].count;
   std::optional<Refill> best;
   while (lo < hi) {

@@ -135,6 +135,31 @@ TEST(TrainerLego, CpuStageTwoGrowsWithinTheBudget) {
 // `--stage 2 --textures none`: the untextured control fine-tunes the Gaussians and the
 // deformation for the stage-2 steps (it used to run no step at all), and writes no pool;
 // with stage 1 in the same run, "none" stays plain 4DGS (no stage-2 steps).
+TEST(TrainerLego, ObserverCountPruningReachesTheDensificationStep) {
+  ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  auto data = OpenLego(path);
+  ASSERT_NE(data, nullptr);
+  TrainConfig config = SmallConfig();
+  config.stage1.coarse_iterations = 10;
+  config.stage1.fine_iterations = 0;
+  config.stage1.densify.from_step = 0;
+  config.stage1.densify.interval = 10;  // one densification, after step 10
+  // More cameras than the dataset has: every Gaussian is under-observed, and the trainer
+  // stops with the cause instead of training an empty model.
+  config.stage1.densify.min_observing_cameras = 100000;
+  auto all_pruned = TrainOnCpu(*data, config, kStage1);
+  ASSERT_FALSE(all_pruned.ok());
+  EXPECT_EQ(all_pruned.status().code(), StatusCode::kNumericalError);
+  EXPECT_NE(all_pruned.status().message().find("pruning would remove all"), std::string::npos)
+      << all_pruned.status().ToString();
+  // One camera: the Gaussians in the training views survive.
+  config.stage1.densify.min_observing_cameras = 1;
+  auto trained = TrainOnCpu(*data, config, kStage1);
+  ASSERT_TRUE(trained.ok()) << trained.status().ToString();
+  ASSERT_EQ(trained->densifications.size(), 1u);
+  EXPECT_GT(trained->densifications[0].after, 0u);
+}
+
 TEST(TrainerLego, StageTwoWithoutTexturesFineTunesTheModel) {
   ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
   auto data = OpenLego(path);
