@@ -225,7 +225,6 @@ int RunFit(const FitArgs& a) {
     if (!fitted.ok()) return cli::Fail(cmd, fitted.status());
     for (uint32_t& k : fitted->kept) k = kept[k];  // back to input indices
     result = std::move(*fitted);
-    phase_done("plan_and_apply");
   } else {
     auto bytes = EncodeAsset(working, *write);
     if (!bytes.ok()) return cli::Fail(cmd, bytes.status());
@@ -234,6 +233,7 @@ int RunFit(const FitArgs& a) {
     result.write = *write;
     result.kept = kept;
   }
+  phase_done("fit");  // plan and apply, or the encode of a --keep-count subset
 
   if (a.finetune > 0) {
     // Retrain the trimmed model (topology and texture sizes fixed), then fit again.

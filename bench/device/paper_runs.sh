@@ -5,16 +5,10 @@
 # The matrix phases run bench/run_matrix.py with --out out/panoptic and a deadline that fits
 # one call; rerun the same phase to continue (MATRIX_CONFIG picks the config, default
 # bench/configs/panoptic_session.json; MATRIX_ARGS adds options, e.g. --only or --skip-fps).
-# Data: .devdata/panoptic_basketball (CMU Panoptic, 30 timesteps) and
-# .devdata/dnerf_lego_tiny/tiny_dnerf_data.npz (copies of ../shared/data).
-set -euo pipefail
-cd "$(dirname "$0")/../.."
+# Data: .devdata (common.sh).
+source "$(dirname "$0")/common.sh"
 phase=$1 out=$2
-mkdir -p "$out" out
-BUILD=${ATEX_GPU_BUILD:-bg}
-atex=$BUILD/bin/atex
-bb=.devdata/panoptic_basketball
-lego=.devdata/dnerf_lego_tiny/tiny_dnerf_data.npz
+mkdir -p "$out"
 log() { echo "== $(date +%T) $*" >&2; }
 
 case $phase in

@@ -10,12 +10,9 @@
 #   sweep:   bench/configs/panoptic_stage1_sweep.json on all GPUs (out/sweep), with FPS
 # The two share GPUs through run_matrix's per-GPU lock files: one cell per GPU at a time.
 # Each call leaves OUT_DIR/results.tgz (rows, logs; no models) and OUT_DIR/progress.txt.
-set -euo pipefail
-cd "$(dirname "$0")/../.."
+source "$(dirname "$0")/common.sh"
 phase=$1 out=$2
-mkdir -p "$out" out
-BUILD=${ATEX_GPU_BUILD:-bg}
-atex=$BUILD/bin/atex
+mkdir -p "$out"
 start=${PARALLEL_SESSION_START:-$(date +%s)}  # the call's start: `start` passes it on to `wait`
 CALL_SECONDS=${CALL_SECONDS:-570}
 gpus=$(nvidia-smi --query-gpu=index --format=csv,noheader | paste -sd, -)

@@ -6,11 +6,8 @@
 #   bench/device/sweep_extras.sh ab          FPS of the old build against the current one, alternating twice,
 #                                            on the default stage-1 and adaptive models, on GPU $AB_GPU (default 0)
 # Everything lands in out/sweep/extras (parallel_session.sh packs out/sweep).
-set -euo pipefail
-cd "$(dirname "$0")/../.."
-BUILD=${ATEX_GPU_BUILD:-bg}
-OLD=${ATEX_OLD_BUILD:-build-old}  # git-ignored: on a lent machine only ignored folders persist between calls
-bb=.devdata/panoptic_basketball
+source "$(dirname "$0")/common.sh"
+OLD=${ATEX_OLD_BUILD:-build-old}  # git-ignored, like $BUILD
 extras=out/sweep/extras
 mkdir -p "$extras"
 compact() { python3 -c 'import json, sys; print(json.dumps(json.load(sys.stdin)))'; }
@@ -25,7 +22,7 @@ case $1 in
     for model in out/sweep/models/basketball/*/s6666/stage1.atex; do
       variant=$(basename "$(dirname "$(dirname "$model")")")
       for view in test:0 test:45; do
-        "$BUILD/bin/atex" render "$model" --data "$bb" --view "$view" --out "$extras/${variant}_${view/:/}.png" \
+        "$atex" render "$model" --data "$bb" --view "$view" --out "$extras/${variant}_${view/:/}.png" \
           --ground-truth "$extras/gt_${view/:/}.png" > /dev/null
       done
     done

@@ -24,4 +24,17 @@ struct Camera {
   }
 };
 
+// Pixel coordinates (u, v) of world point `x` in `cam`. False when the point is not beyond
+// `near_plane` (camera z > near_plane) or projects outside the image.
+inline bool ProjectToImage(const Camera& cam, const double x[3], double near_plane, double* u, double* v) {
+  const auto& m = cam.world_to_camera;
+  const double cz = m[8] * x[0] + m[9] * x[1] + m[10] * x[2] + m[11];
+  if (!(cz > near_plane)) return false;
+  const double cx = m[0] * x[0] + m[1] * x[1] + m[2] * x[2] + m[3];
+  const double cy = m[4] * x[0] + m[5] * x[1] + m[6] * x[2] + m[7];
+  *u = cam.fx * cx / cz + cam.cx;
+  *v = cam.fy * cy / cz + cam.cy;
+  return *u >= 0 && *v >= 0 && *u < cam.width && *v < cam.height;
+}
+
 }  // namespace atex

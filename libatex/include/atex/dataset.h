@@ -156,6 +156,10 @@ class Dataset {
   std::shared_ptr<ImageCache> cache_;
 };
 
+// The views of the earliest timestep among `views` (all of them when they have no timestep,
+// as in D-NeRF): one view per camera in multi-view video, at the poses the cameras keep.
+std::vector<const View*> FirstTimestepViews(const std::vector<View>& views);
+
 // Opens a dataset folder (or the lego .npz file).
 StatusOr<std::unique_ptr<Dataset>> OpenDataset(const std::string& path, const DatasetOptions& options = {});
 

@@ -29,6 +29,18 @@ const char* DatasetKindName(DatasetKind kind) {
   return "?";
 }
 
+std::vector<const View*> FirstTimestepViews(const std::vector<View>& views) {
+  int first_step = -1;
+  for (const View& v : views) {
+    if (v.timestep >= 0 && (first_step < 0 || v.timestep < first_step)) first_step = v.timestep;
+  }
+  std::vector<const View*> first;
+  for (const View& v : views) {
+    if (first_step < 0 || v.timestep == first_step) first.push_back(&v);
+  }
+  return first;
+}
+
 StatusOr<DatasetKind> ParseDatasetKind(const std::string& name) {
   for (DatasetKind kind : {DatasetKind::kAuto, DatasetKind::kPanoptic, DatasetKind::kDNerf, DatasetKind::kDNerfNpz,
                            DatasetKind::kN3dv, DatasetKind::kInMemory}) {

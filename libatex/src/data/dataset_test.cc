@@ -574,5 +574,23 @@ TEST(LegoNpz, TimestepStrideIsRefusedTrainCamerasSelectFrames) {
   EXPECT_EQ((*sparse)->test_views().size(), 20u);
 }
 
+TEST(Views, FirstTimestepViewsAreOnePerCamera) {
+  std::vector<View> views(5);
+  const int steps[5] = {3, 2, 2, 5, 2};
+  for (int i = 0; i < 5; ++i) {
+    views[i].timestep = steps[i];
+    views[i].camera_id = i;
+  }
+  const std::vector<const View*> first = FirstTimestepViews(views);
+  ASSERT_EQ(first.size(), 3u);
+  EXPECT_EQ(first[0], &views[1]);
+  EXPECT_EQ(first[1], &views[2]);
+  EXPECT_EQ(first[2], &views[4]);
+  // Without timesteps (one frame per view, as D-NeRF): every view.
+  for (View& v : views) v.timestep = -1;
+  EXPECT_EQ(FirstTimestepViews(views).size(), 5u);
+  EXPECT_TRUE(FirstTimestepViews({}).empty());
+}
+
 }  // namespace
 }  // namespace atex

@@ -40,13 +40,8 @@ struct CameraImages {
 
 // Pixel hit by a world point, or false when behind the camera or outside the image.
 bool Project(const Camera& cam, const double x[3], int* px, int* py) {
-  const auto& m = cam.world_to_camera;
-  const double cx = m[0] * x[0] + m[1] * x[1] + m[2] * x[2] + m[3];
-  const double cy = m[4] * x[0] + m[5] * x[1] + m[6] * x[2] + m[7];
-  const double cz = m[8] * x[0] + m[9] * x[1] + m[10] * x[2] + m[11];
-  if (!(cz > 1e-6)) return false;
-  const double u = cam.fx * cx / cz + cam.cx, v = cam.fy * cy / cz + cam.cy;
-  if (!(u >= 0 && v >= 0 && u < cam.width && v < cam.height)) return false;
+  double u, v;
+  if (!ProjectToImage(cam, x, 1e-6, &u, &v)) return false;
   *px = static_cast<int>(u);
   *py = static_cast<int>(v);
   return true;
@@ -266,16 +261,8 @@ StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOption
   rep = InitReport();
 
   // Training views of the first timestep (all training views for time-per-frame datasets).
-  const std::vector<View>& train = dataset.train_views();
-  int first_step = -1;
-  for (const View& v : train) {
-    if (v.timestep >= 0 && (first_step < 0 || v.timestep < first_step)) first_step = v.timestep;
-  }
-  std::vector<const View*> first_views;
-  for (const View& v : train) {
-    if (first_step < 0 || v.timestep == first_step) first_views.push_back(&v);
-  }
-  const bool multi_view = first_step >= 0 && first_views.size() >= 2;
+  const std::vector<const View*> first_views = FirstTimestepViews(dataset.train_views());
+  const bool multi_view = !first_views.empty() && first_views[0]->timestep >= 0 && first_views.size() >= 2;
 
   InitMethod method = options.method;
   if (method == InitMethod::kAuto) {

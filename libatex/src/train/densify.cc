@@ -134,15 +134,10 @@ std::vector<uint16_t> CountObservingCameras(const Gaussians& canonical, const st
   const size_t n = canonical.size();
   std::vector<uint16_t> count(n, 0);
   for (const Camera& camera : cameras) {
-    const auto& m = camera.world_to_camera;
     for (size_t i = 0; i < n; ++i) {
-      const double x = canonical.positions[i * 3], y = canonical.positions[i * 3 + 1], z = canonical.positions[i * 3 + 2];
-      const double cz = m[8] * x + m[9] * y + m[10] * z + m[11];
-      if (!(cz > near_plane)) continue;
-      const double cx = m[0] * x + m[1] * y + m[2] * z + m[3];
-      const double cy = m[4] * x + m[5] * y + m[6] * z + m[7];
-      const double u = camera.fx * cx / cz + camera.cx, v = camera.fy * cy / cz + camera.cy;
-      if (u >= 0 && u < camera.width && v >= 0 && v < camera.height && count[i] < UINT16_MAX) ++count[i];
+      const double x[3] = {canonical.positions[i * 3], canonical.positions[i * 3 + 1], canonical.positions[i * 3 + 2]};
+      double u, v;
+      if (ProjectToImage(camera, x, near_plane, &u, &v) && count[i] < UINT16_MAX) ++count[i];
     }
   }
   return count;

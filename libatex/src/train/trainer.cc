@@ -28,28 +28,6 @@ double CameraExtent(const std::vector<View>& views) {
   return radius > 0 ? 1.1 * radius : 1.0;
 }
 
-namespace {
-
-// One camera per distinct pose of the training views: views of one dataset camera share
-// its pose in multi-view video; views without a camera id are compared by pose.
-std::vector<Camera> DistinctTrainingCameras(const std::vector<View>& views) {
-  std::vector<Camera> cameras;
-  std::vector<int> ids;
-  for (const View& v : views) {
-    const bool seen = v.camera_id >= 0 ? std::find(ids.begin(), ids.end(), v.camera_id) != ids.end()
-                                       : std::any_of(cameras.begin(), cameras.end(), [&](const Camera& c) {
-                                           return c.world_to_camera == v.camera.world_to_camera && c.fx == v.camera.fx &&
-                                                  c.fy == v.camera.fy && c.cx == v.camera.cx && c.cy == v.camera.cy;
-                                         });
-    if (seen) continue;
-    if (v.camera_id >= 0) ids.push_back(v.camera_id);
-    cameras.push_back(v.camera);
-  }
-  return cameras;
-}
-
-}  // namespace
-
 ModelState StateFromAsset(const Asset& asset) {
   ModelState state;
   state.gaussians = asset.gaussians;
@@ -501,7 +479,9 @@ class Loop {
       const bool prune_size = d.opacity_reset_interval > 0 && done > d.opacity_reset_interval;
       std::vector<uint16_t> observers;
       if (d.min_observing_cameras > 0) {
-        if (observing_cameras_.empty()) observing_cameras_ = DistinctTrainingCameras(data_.train_views());
+        if (observing_cameras_.empty()) {
+          for (const View* v : FirstTimestepViews(data_.train_views())) observing_cameras_.push_back(v->camera);
+        }
         observers = CountObservingCameras(canonical, observing_cameras_, config_.near_plane);
       }
       ATEX_ASSIGN_OR_RETURN(edit, PlanDensification(canonical, stats.densify, d, extent_, prune_size,
@@ -625,7 +605,7 @@ class Loop {
   Metadata metadata_;
   TrainSummary summary_;
   double extent_ = 1.0;
-  std::vector<Camera> observing_cameras_;  // DistinctTrainingCameras, computed on first use
+  std::vector<Camera> observing_cameras_;  // one per training camera (FirstTimestepViews), on first use
   std::vector<View> progress_eval_views_;  // ProgressEvalViews(), chosen once
   double lr_scale_ = 1.0;
   Clock::time_point run_start_ = Clock::now();

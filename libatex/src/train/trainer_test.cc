@@ -132,9 +132,6 @@ TEST(TrainerLego, CpuStageTwoGrowsWithinTheBudget) {
   EXPECT_LT(adaptive_texels, 16u * n) << "adaptive should use fewer texels than uniform 4x4";
 }
 
-// `--stage 2 --textures none`: the untextured control fine-tunes the Gaussians and the
-// deformation for the stage-2 steps (it used to run no step at all), and writes no pool;
-// with stage 1 in the same run, "none" stays plain 4DGS (no stage-2 steps).
 TEST(TrainerLego, ObserverCountPruningReachesTheDensificationStep) {
   ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
   auto data = OpenLego(path);
@@ -160,6 +157,9 @@ TEST(TrainerLego, ObserverCountPruningReachesTheDensificationStep) {
   EXPECT_GT(trained->densifications[0].after, 0u);
 }
 
+// `--stage 2 --textures none`: the untextured control fine-tunes the Gaussians and the
+// deformation for the stage-2 steps (it used to run no step at all), and writes no pool;
+// with stage 1 in the same run, "none" stays plain 4DGS (no stage-2 steps).
 TEST(TrainerLego, StageTwoWithoutTexturesFineTunesTheModel) {
   ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
   auto data = OpenLego(path);
