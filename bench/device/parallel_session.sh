@@ -8,6 +8,7 @@
 #   session: bench/configs/panoptic_session.json on all GPUs (out/panoptic), with FPS
 #   stress:  bench/configs/stress_gpu.json on all GPUs but the first (out/stress), no FPS
 #   sweep:   bench/configs/panoptic_stage1_sweep.json on all GPUs (out/sweep), with FPS
+#   sametime: bench/configs/panoptic_same_time.json on all GPUs (out/same_time), with FPS
 # The two share GPUs through run_matrix's per-GPU lock files: one cell per GPU at a time.
 # Each call leaves OUT_DIR/results.tgz (rows, logs; no models) and OUT_DIR/progress.txt.
 source "$(dirname "$0")/common.sh"
@@ -39,7 +40,7 @@ snapshot() {
     done
     nvidia-smi --query-gpu=index,utilization.gpu,memory.used --format=csv,noheader || true
   } > "$out/progress.txt"
-  tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic out/stress out/sweep out/*.log out/*.rc \
+  tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic out/stress out/sweep out/same_time out/*.log out/*.rc \
     2>/dev/null || true
 }
 
@@ -51,6 +52,7 @@ case $phase in
         session) launch session bench/configs/panoptic_session.json out/panoptic "$gpus" ;;
         stress) launch stress bench/configs/stress_gpu.json out/stress "$rest" --skip-fps ;;
         sweep) launch sweep bench/configs/panoptic_stage1_sweep.json out/sweep "$gpus" ;;
+        sametime) launch sametime bench/configs/panoptic_same_time.json out/same_time "$gpus" ;;
         *) echo "unknown job $j" >&2; exit 2 ;;
       esac
     done

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <list>
 #include <map>
+#include <numeric>
 #include <unordered_map>
 
 #include "deform/deform_cuda.h"
@@ -218,14 +219,22 @@ class CudaBackend final : public Backend {
       auto it = targets_.find(view.image_key);
       if (it != targets_.end()) lru_.splice(lru_.begin(), lru_, it->second.second);
     }
-    for (size_t k = 0; k < views.size(); ++k) {
+    // Views of one time share one deformation pass: the deformed Gaussians are computed
+    // once, the views' render gradients accumulate into the same dL/d(deformed) buffers,
+    // and the deformation backward runs once for their sum (it is linear in them).
+    const std::vector<size_t> order = TimeGroupedOrder(views);
+    for (size_t position = 0; position < order.size(); ++position) {
+      const size_t k = order[position];
       const Camera& camera = *views[k].camera;
+      const bool first_of_time = position == 0 || views[order[position - 1]].camera->time != camera.time;
+      const bool last_of_time =
+          position + 1 == order.size() || views[order[position + 1]].camera->time != camera.time;
       ATEX_ASSIGN_OR_RETURN(const float* target, Target(views[k]));
       ATEX_RETURN_IF_ERROR(Mark("targets"));
       const detail::CameraModel<float> cam = detail::MakeCameraModel<float>(camera, request.near_plane);
       RenderInputs inputs;
       RenderGradients grads;
-      ATEX_RETURN_IF_ERROR(PrepareView(request, camera.time, textured, &inputs, &grads));
+      ATEX_RETURN_IF_ERROR(PrepareView(request, camera.time, textured, first_of_time, &inputs, &grads));
       ATEX_RETURN_IF_ERROR(Mark("deform_forward"));
       const size_t pixels = size_t(camera.width) * camera.height;
       ATEX_RETURN_IF_ERROR(image_.Resize(pixels * 3));
@@ -243,7 +252,8 @@ class CudaBackend final : public Backend {
       ATEX_RETURN_IF_ERROR(
           render_->Backward(cam, inputs, image_grad_.data(), nullptr, grads, with_stats ? &stats : nullptr));
       ATEX_RETURN_IF_ERROR(Mark("render_backward"));
-      if (request.apply_deformation) {
+      if (request.apply_deformation && last_of_time) {
+        ++deform_passes_;
         ATEX_RETURN_IF_ERROR(deform_->Backward(deform_layout_, grid_.value.data(), mlp_.value.data(),
                                                static_cast<int>(count_), sh_coeffs_, static_cast<float>(camera.time),
                                                Canonical(), DeformedGrads(), grid_.grad.data(), mlp_.grad.data(),
@@ -459,7 +469,7 @@ class CudaBackend final : public Backend {
     const bool textured = request.use_textures && has_textures_;
     RenderInputs inputs;
     RenderGradients unused;
-    ATEX_RETURN_IF_ERROR(PrepareView(step, camera.time, textured, &inputs, &unused));
+    ATEX_RETURN_IF_ERROR(PrepareView(step, camera.time, textured, /*new_time=*/true, &inputs, &unused));
     for (int k = 0; k < 3; ++k) inputs.background[k] = request.background[k];
     const detail::CameraModel<float> cam = detail::MakeCameraModel<float>(camera, request.near_plane);
     const size_t pixels = size_t(camera.width) * camera.height;
@@ -484,6 +494,7 @@ class CudaBackend final : public Backend {
     }
     j["total_ms"] = total;
     j["steps"] = profiled_steps_;
+    j["deformation_passes"] = deform_passes_;
     return j;
   }
 
@@ -498,7 +509,7 @@ class CudaBackend final : public Backend {
     auto render_once = [&]() -> Status {
       RenderInputs inputs;
       RenderGradients unused;
-      ATEX_RETURN_IF_ERROR(PrepareView(step, camera.time, textured, &inputs, &unused));
+      ATEX_RETURN_IF_ERROR(PrepareView(step, camera.time, textured, /*new_time=*/true, &inputs, &unused));
       for (int k = 0; k < 3; ++k) inputs.background[k] = request.background[k];
       return render_->Forward(cam, inputs, image_.data(), nullptr, nullptr);
     };
@@ -547,15 +558,35 @@ class CudaBackend final : public Backend {
     return {g_positions_.data(), g_log_scales_.data(), g_rotations_.data(), g_opacity_.data(), g_sh_.data()};
   }
 
+  // The order in which Step visits a batch's views: by time (stable), so that the views
+  // of one time are adjacent and share a deformation pass.
+  static std::vector<size_t> TimeGroupedOrder(std::span<const train::TrainView> views) {
+    std::vector<size_t> order(views.size());
+    std::iota(order.begin(), order.end(), size_t{0});
+    std::stable_sort(order.begin(), order.end(),
+                     [&](size_t a, size_t b) { return views[a].camera->time < views[b].camera->time; });
+    return order;
+  }
+
   // Fills the render inputs of one view: the canonical Gaussians (coarse stage) or the
-  // deformed ones at `time`, and where their gradients go.
-  Status PrepareView(const train::StepRequest& request, double time, bool textured, RenderInputs* in,
-                     RenderGradients* grads) {
+  // deformed ones at `time`, and where their gradients go. `new_time`: deform and zero
+  // the deformed gradients; false: the previous view had the same time, so the deformed
+  // Gaussians are current and their gradients keep accumulating.
+  Status PrepareView(const train::StepRequest& request, double time, bool textured, bool new_time,
+                     RenderInputs* in, RenderGradients* grads) {
     in->count = static_cast<int>(count_);
     in->sh_coeffs = sh_coeffs_;
     in->active_sh_degree = std::min(request.active_sh_degree, sh_degree_);
     for (int k = 0; k < 3; ++k) in->background[k] = request.background[k];
-    if (request.apply_deformation) {
+    if (request.apply_deformation && !new_time) {
+      const GaussianTensors d = Deformed(), g = DeformedGrads();
+      in->positions = d.positions;
+      in->rotations = d.rotations;
+      in->log_scales = d.log_scales;
+      in->opacity = d.opacity;
+      in->sh = d.sh;
+      *grads = {g.positions, g.rotations, g.log_scales, g.opacity, g.sh, nullptr};
+    } else if (request.apply_deformation) {
       for (auto [buffer, width] : {std::pair{&d_positions_, 3}, std::pair{&d_log_scales_, 3},
                                    std::pair{&d_rotations_, 4}, std::pair{&d_opacity_, 1},
                                    std::pair{&d_sh_, 3 * sh_coeffs_}, std::pair{&g_positions_, 3},
@@ -811,6 +842,7 @@ class CudaBackend final : public Backend {
   cudaEvent_t mark_event_ = nullptr, next_event_ = nullptr;
   std::map<std::string, double> profile_ms_;
   int64_t profiled_steps_ = 0;
+  int64_t deform_passes_ = 0;  // deformation backward passes (one per distinct time of a batch)
 };
 
 }  // namespace

@@ -104,6 +104,51 @@ train::StepRequest Request() {
   return r;
 }
 
+// Every parameter group's gradient of the last step, GPU against CPU, to 1e-3.
+void ExpectSameGradients(train::Backend& cpu, train::Backend& gpu) {
+  train::ModelState ga, gb;
+  ATEX_ASSERT_OK(cpu.ReadGradients(&ga));
+  ATEX_ASSERT_OK(gpu.ReadGradients(&gb));
+  auto flatten = [](const DeformationField& f, bool planes) {
+    std::vector<float> out;
+    if (planes) {
+      for (const auto& scale : f.planes) {
+        for (const auto& p : scale) out.insert(out.end(), p.begin(), p.end());
+      }
+    } else {
+      for (const auto& l : f.trunk) {
+        out.insert(out.end(), l.weight.begin(), l.weight.end());
+        out.insert(out.end(), l.bias.begin(), l.bias.end());
+      }
+      for (const auto& head : f.heads) {
+        for (const auto& l : head) {
+          out.insert(out.end(), l.weight.begin(), l.weight.end());
+          out.insert(out.end(), l.bias.begin(), l.bias.end());
+        }
+      }
+    }
+    return out;
+  };
+  ASSERT_TRUE(ga.textures && gb.textures && ga.deformation && gb.deformation);
+  const std::vector<std::tuple<const char*, std::vector<float>, std::vector<float>>> groups = {
+      {"positions", gb.gaussians.positions, ga.gaussians.positions},
+      {"rotations", gb.gaussians.rotations, ga.gaussians.rotations},
+      {"log_scales", gb.gaussians.log_scales, ga.gaussians.log_scales},
+      {"opacity", gb.gaussians.opacity_logits, ga.gaussians.opacity_logits},
+      {"sh", gb.gaussians.sh, ga.gaussians.sh},
+      {"texels", gb.textures->texels, ga.textures->texels},
+      {"grid", flatten(*gb.deformation, true), flatten(*ga.deformation, true)},
+      {"mlp", flatten(*gb.deformation, false), flatten(*ga.deformation, false)},
+  };
+  std::printf("[backend parity] step-0 gradients (GPU vs CPU):");
+  for (const auto& [name, got, want] : groups) {
+    const double e = RelativeError(got, want);
+    std::printf(" %s %.2e", name, e);
+    EXPECT_LE(e, 1e-3) << name;
+  }
+  std::printf("\n");
+}
+
 TEST(BackendParity, StepsStatisticsEditsAndGrowthMatchTheCpuBackend) {
   ATEX_REQUIRE_CUDA_DEVICE();
   Scene scene = MakeScene(7);
@@ -131,47 +176,7 @@ TEST(BackendParity, StepsStatisticsEditsAndGrowthMatchTheCpuBackend) {
     ASSERT_TRUE(a->finite && b->finite);
     std::printf("[backend parity] step 0: loss cpu %.8f gpu %.8f\n", a->loss, b->loss);
     EXPECT_LE(std::abs(a->loss - b->loss), 1e-5 * std::abs(a->loss));
-    train::ModelState ga, gb;
-    ATEX_ASSERT_OK(cpu->ReadGradients(&ga));
-    ATEX_ASSERT_OK(gpu->ReadGradients(&gb));
-    auto flatten = [](const DeformationField& f, bool planes) {
-      std::vector<float> out;
-      if (planes) {
-        for (const auto& scale : f.planes) {
-          for (const auto& p : scale) out.insert(out.end(), p.begin(), p.end());
-        }
-      } else {
-        for (const auto& l : f.trunk) {
-          out.insert(out.end(), l.weight.begin(), l.weight.end());
-          out.insert(out.end(), l.bias.begin(), l.bias.end());
-        }
-        for (const auto& head : f.heads) {
-          for (const auto& l : head) {
-            out.insert(out.end(), l.weight.begin(), l.weight.end());
-            out.insert(out.end(), l.bias.begin(), l.bias.end());
-          }
-        }
-      }
-      return out;
-    };
-    ASSERT_TRUE(ga.textures && gb.textures && ga.deformation && gb.deformation);
-    const std::vector<std::tuple<const char*, std::vector<float>, std::vector<float>>> groups = {
-        {"positions", gb.gaussians.positions, ga.gaussians.positions},
-        {"rotations", gb.gaussians.rotations, ga.gaussians.rotations},
-        {"log_scales", gb.gaussians.log_scales, ga.gaussians.log_scales},
-        {"opacity", gb.gaussians.opacity_logits, ga.gaussians.opacity_logits},
-        {"sh", gb.gaussians.sh, ga.gaussians.sh},
-        {"texels", gb.textures->texels, ga.textures->texels},
-        {"grid", flatten(*gb.deformation, true), flatten(*ga.deformation, true)},
-        {"mlp", flatten(*gb.deformation, false), flatten(*ga.deformation, false)},
-    };
-    std::printf("[backend parity] step-0 gradients (GPU vs CPU):");
-    for (const auto& [name, got, want] : groups) {
-      const double e = RelativeError(got, want);
-      std::printf(" %s %.2e", name, e);
-      EXPECT_LE(e, 1e-3) << name;
-    }
-    std::printf("\n");
+    ExpectSameGradients(*cpu, *gpu);
   }
   for (int step = 1; step < 6; ++step) {
     std::span<const train::TrainView> batch(views.data() + (step % 2) * 2, 2);
@@ -244,6 +249,42 @@ TEST(BackendParity, StepsStatisticsEditsAndGrowthMatchTheCpuBackend) {
   const double e_image = RelativeError(ib->pixels, ia->pixels);
   std::printf("[backend parity] final render: %.2e\n", e_image);
   EXPECT_LE(e_image, 1e-2);
+}
+
+// A batch of two times, two views each, listed interleaved: the CUDA backend deforms
+// once per time and runs one deformation backward for the sum of the two views' render
+// gradients; the gradients must still be the CPU backend's, which deforms per view.
+TEST(BackendParity, ViewsOfOneTimeShareOneDeformationPass) {
+  ATEX_REQUIRE_CUDA_DEVICE();
+  Scene scene = MakeScene(11);
+  CudaBackendOptions options;
+  options.tf32 = false;
+  options.profile = true;  // counts the deformation passes
+  auto gpu_or = MakeCudaBackend(options);
+  ASSERT_TRUE(gpu_or.ok()) << gpu_or.status().ToString();
+  std::unique_ptr<train::Backend> gpu = std::move(*gpu_or);
+  std::unique_ptr<train::Backend> cpu = train::MakeCpuBackend();
+  ATEX_ASSERT_OK(cpu->Load(scene.state));
+  ATEX_ASSERT_OK(gpu->Load(scene.state));
+
+  // A second pose at the times of cameras 0 and 1: the base pose moved sideways.
+  std::vector<Camera> moved = {scene.cameras[0], scene.cameras[1]};
+  for (Camera& c : moved) c.world_to_camera[3] += 0.05;  // camera-space x translation
+  const std::vector<train::TrainView> batch = {{&scene.cameras[0], &scene.targets[0], 1},
+                                               {&scene.cameras[1], &scene.targets[1], 2},
+                                               {&moved[0], &scene.targets[0], 3},
+                                               {&moved[1], &scene.targets[1], 4}};
+  const train::StepRequest request = Request();
+  auto a = cpu->Step(request, batch);
+  auto b = gpu->Step(request, batch);
+  ASSERT_TRUE(a.ok()) << a.status().ToString();
+  ASSERT_TRUE(b.ok()) << b.status().ToString();
+  ASSERT_TRUE(a->finite && b->finite);
+  std::printf("[backend parity] shared deformation: loss cpu %.8f gpu %.8f\n", a->loss, b->loss);
+  EXPECT_LE(std::abs(a->loss - b->loss), 1e-5 * std::abs(a->loss));
+  for (size_t k = 0; k < batch.size(); ++k) EXPECT_NEAR(a->view_psnr[k], b->view_psnr[k], 1e-3) << "view " << k;
+  ExpectSameGradients(*cpu, *gpu);
+  EXPECT_EQ(gpu->Profile().value("deformation_passes", -1), 2);
 }
 
 }  // namespace

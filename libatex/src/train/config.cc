@@ -50,7 +50,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(RegularizerConfig, plane_tv, tim
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(InitVolumeConfig, far, uniform_depth, max_colour_spread,
                                                 attempts_per_point)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Stage1Config, coarse_iterations, fine_iterations, batch_size,
-                                                lambda_dssim, sh_degree, sh_increase_interval, lr, densify,
+                                                same_time_batches, lambda_dssim, sh_degree, sh_increase_interval, lr, densify,
                                                 regularizer, deformation, init_method, init_points,
                                                 init_hull_fraction, init_volume)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(GrowthAblations, temporal_peak, anisotropic,
@@ -59,6 +59,7 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(GrowthAblations, temporal_peak, 
 static void to_json(nlohmann::json& j, const Stage2Config& c) {
   j = {{"iterations", c.iterations},
        {"batch_size", c.batch_size},
+       {"same_time_batches", c.same_time_batches},
        {"lambda_dssim", c.lambda_dssim},
        {"textures", std::string(TextureModeName(c.textures))},
        {"growth_steps", c.growth_steps},
@@ -72,6 +73,7 @@ static void to_json(nlohmann::json& j, const Stage2Config& c) {
 static void from_json(const nlohmann::json& j, Stage2Config& c) {
   c.iterations = j.value("iterations", c.iterations);
   c.batch_size = j.value("batch_size", c.batch_size);
+  c.same_time_batches = j.value("same_time_batches", c.same_time_batches);
   c.lambda_dssim = j.value("lambda_dssim", c.lambda_dssim);
   if (j.contains("textures")) {
     auto mode = ParseTextureMode(j.at("textures").get<std::string>());

@@ -2,8 +2,6 @@
 
 #include <gtest/gtest.h>
 
-#include "atex/train/schedule.h"
-
 namespace atex::train {
 namespace {
 
@@ -49,24 +47,6 @@ TEST(ExpDecay, EndpointsAndMonotone) {
   EXPECT_NEAR(d.At(40000), 1.6e-6, 1e-14);
   EXPECT_NEAR(d.At(10000), 1.6e-5, 1e-12);  // geometric midpoint
   EXPECT_GT(d.At(100), d.At(200));
-}
-
-TEST(CameraSchedule, EpochsArePermutationsAndRanksPartitionTheBatch) {
-  CameraSchedule schedule(6666, 27);
-  std::vector<int> seen(27, 0);
-  for (int i = 0; i < 27; ++i) seen[schedule.ViewAt(27 + i)]++;
-  for (int c : seen) EXPECT_EQ(c, 1);
-  // Two ranks of batch 8 see exactly the single-rank batch.
-  auto all = schedule.Views(5, 8);
-  auto r0 = schedule.Views(5, 8, 0, 2), r1 = schedule.Views(5, 8, 1, 2);
-  r0.insert(r0.end(), r1.begin(), r1.end());
-  EXPECT_EQ(all, r0);
-  // Same seed, same stream; another seed differs.
-  CameraSchedule same(6666, 27), other(1, 27);
-  EXPECT_EQ(same.Views(3, 4), schedule.Views(3, 4));
-  bool differs = false;
-  for (int s = 0; s < 5; ++s) differs |= other.Views(s, 4) != schedule.Views(s, 4);
-  EXPECT_TRUE(differs);
 }
 
 }  // namespace

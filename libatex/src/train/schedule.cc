@@ -1,6 +1,8 @@
 #include "atex/train/schedule.h"
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <numeric>
 
 namespace atex::train {
@@ -42,6 +44,58 @@ std::vector<size_t> CameraSchedule::Views(int64_t step, int batch, int rank, int
   const uint64_t start = static_cast<uint64_t>(step) * batch + static_cast<uint64_t>(rank) * local;
   for (int i = 0; i < local; ++i) views.push_back(ViewAt(start + i));
   return views;
+}
+
+namespace {
+
+// Fisher-Yates over `items` with `rng`.
+void Shuffle(std::vector<size_t>& items, SplitMix64& rng) {
+  for (size_t i = items.size(); i > 1; --i) {
+    const size_t j = static_cast<size_t>(rng.Next() % i);
+    std::swap(items[i - 1], items[j]);
+  }
+}
+
+}  // namespace
+
+TimeBatchSchedule::TimeBatchSchedule(uint64_t seed, std::span<const double> view_times) : seed_(seed) {
+  std::map<double, std::vector<size_t>> by_time;
+  for (size_t i = 0; i < view_times.size(); ++i) by_time[view_times[i]].push_back(i);
+  for (auto& [time, views] : by_time) groups_.push_back(std::move(views));
+}
+
+std::vector<size_t> TimeBatchSchedule::TimeOrder(uint64_t epoch) const {
+  if (epoch != cached_epoch_) {
+    cached_.resize(groups_.size());
+    std::iota(cached_.begin(), cached_.end(), size_t{0});
+    // A stream apart from CameraSchedule's (the last constant differs), same seed.
+    SplitMix64 rng(seed_ * 0x2545F4914F6CDD1Dull + epoch * 0x9E3779B97F4A7C15ull + 0x5851F42D4C957F2Dull);
+    Shuffle(cached_, rng);
+    cached_epoch_ = epoch;
+  }
+  return cached_;
+}
+
+std::vector<size_t> TimeBatchSchedule::Views(int64_t step, int batch, int rank, int world_size) const {
+  std::vector<size_t> picks;
+  if (groups_.empty() || batch <= 0) return picks;
+  const uint64_t times = groups_.size();
+  const uint64_t s = static_cast<uint64_t>(step);
+  SplitMix64 rng(seed_ * 0x9E3779B97F4A7C15ull + s * 0xD1B54A32D192ED03ull + 7);
+  // Whole groups of the permutation, from the step's own position on, until B views are drawn.
+  for (uint64_t k = 0; picks.size() < static_cast<size_t>(batch) && k < times; ++k) {
+    const uint64_t position = s % times + k;
+    const std::vector<size_t> order = TimeOrder(s / times + position / times);
+    std::vector<size_t> group = groups_[order[position % times]];
+    Shuffle(group, rng);
+    const size_t take = std::min(group.size(), static_cast<size_t>(batch) - picks.size());
+    picks.insert(picks.end(), group.begin(), group.begin() + static_cast<std::ptrdiff_t>(take));
+  }
+  // Fewer views in the whole dataset than B: repeat them, as the epoch stream would.
+  for (size_t i = 0; picks.size() < static_cast<size_t>(batch); ++i) picks.push_back(picks[i]);
+  const int local = batch / world_size;
+  return std::vector<size_t>(picks.begin() + static_cast<std::ptrdiff_t>(rank) * local,
+                             picks.begin() + static_cast<std::ptrdiff_t>(rank + 1) * local);
 }
 
 }  // namespace atex::train

@@ -28,6 +28,13 @@ double CameraExtent(const std::vector<View>& views) {
   return radius > 0 ? 1.1 * radius : 1.0;
 }
 
+static std::vector<double> ViewTimes(const std::vector<View>& views) {
+  std::vector<double> times;
+  times.reserve(views.size());
+  for (const View& v : views) times.push_back(v.camera.time);
+  return times;
+}
+
 ModelState StateFromAsset(const Asset& asset) {
   ModelState state;
   state.gaussians = asset.gaussians;
@@ -107,7 +114,8 @@ class Loop {
  public:
   Loop(const Dataset& dataset, Backend& backend, const TrainerOptions& options)
       : data_(dataset), backend_(backend), options_(options), config_(options.config),
-        schedule_(config_.seed, dataset.train_views().size()) {}
+        schedule_(config_.seed, dataset.train_views().size()),
+        time_schedule_(config_.seed, ViewTimes(dataset.train_views())) {}
 
   StatusOr<TrainSummary> Run(const Asset* initial) {
     if (data_.train_views().empty()) return MakeError(StatusCode::kInvalidArgument, "dataset has no training views");
@@ -327,6 +335,8 @@ class Loop {
   Status RunPhase(Phase phase, int first_step) {
     const int total = Iterations(phase);
     const int batch = phase == Phase::kTextures ? config_.stage2.batch_size : config_.stage1.batch_size;
+    const bool same_time = (phase == Phase::kFine && config_.stage1.same_time_batches) ||
+                           (phase == Phase::kTextures && config_.stage2.same_time_batches);
     if (batch < 1 || batch % options_.world_size != 0) {
       return MakeError(StatusCode::kInvalidArgument, "batch size ", batch, " is not a positive multiple of ",
                        options_.world_size, " ranks");
@@ -362,7 +372,8 @@ class Loop {
       StepRequest request = MakeRequest(phase, step);
       request.accumulate_importance = step >= importance_from;
       const std::vector<size_t> picks =
-          schedule_.Views(total_steps_, batch, options_.rank, options_.world_size);
+          same_time ? time_schedule_.Views(total_steps_, batch, options_.rank, options_.world_size)
+                    : schedule_.Views(total_steps_, batch, options_.rank, options_.world_size);
       std::vector<std::shared_ptr<const Image>> images;
       std::vector<TrainView> views;
       for (size_t index : picks) {
@@ -601,6 +612,7 @@ class Loop {
   const TrainerOptions& options_;
   TrainConfig config_;
   CameraSchedule schedule_;
+  TimeBatchSchedule time_schedule_;
   std::ofstream csv_;
   Metadata metadata_;
   TrainSummary summary_;

@@ -83,6 +83,10 @@ struct Stage1Config {
   int coarse_iterations = 3000;
   int fine_iterations = 14000;
   int batch_size = 4;
+  // [choice, not in 4DGaussians, whose batches are random views] each fine-stage batch
+  // takes its views from one time (TimeBatchSchedule, schedule.h), so the deformation
+  // field runs once per step instead of once per view. false: random views (CameraSchedule).
+  bool same_time_batches = true;
   double lambda_dssim = 0.2;
   int sh_degree = 3;
   int sh_increase_interval = 1000;
@@ -106,6 +110,7 @@ struct GrowthAblations {
 struct Stage2Config {
   int iterations = 5000;
   int batch_size = 8;
+  bool same_time_batches = false;  // as Stage1Config's; the paper's 8 workers draw random views
   double lambda_dssim = 0.2;
   TextureMode textures = TextureMode::kAdaptive;
   std::vector<int> growth_steps{500, 1000};

@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace atex::train {
@@ -24,6 +25,29 @@ class CameraSchedule {
   std::vector<size_t> Permutation(uint64_t epoch) const;
   uint64_t seed_;
   size_t view_count_;
+  mutable uint64_t cached_epoch_ = ~uint64_t{0};
+  mutable std::vector<size_t> cached_;
+};
+
+// Batches of one time, for a deformation field that is evaluated once per distinct
+// time of a batch (the CUDA backend shares that pass between the views of one time).
+// Step s takes the time at position s mod T of a permutation of the T distinct
+// training times drawn from (seed, s div T), so every time comes once per T steps, and
+// B of that time's views drawn from (seed, s) without replacement. A time with fewer
+// than B views is followed by the next times of the permutation (a dataset of one view
+// per time, as D-NeRF, gets batches of B consecutive times of the permutation). Rank r
+// of R takes the slice of B/R views starting at r*(B/R), as CameraSchedule.
+class TimeBatchSchedule {
+ public:
+  // view_times[i]: the time of training view i; views of equal times form one group.
+  TimeBatchSchedule(uint64_t seed, std::span<const double> view_times);
+  std::vector<size_t> Views(int64_t step, int batch, int rank = 0, int world_size = 1) const;
+  size_t time_count() const { return groups_.size(); }
+
+ private:
+  std::vector<size_t> TimeOrder(uint64_t epoch) const;
+  uint64_t seed_;
+  std::vector<std::vector<size_t>> groups_;  // view indices per distinct time, ascending time
   mutable uint64_t cached_epoch_ = ~uint64_t{0};
   mutable std::vector<size_t> cached_;
 };
