@@ -46,10 +46,7 @@ __global__ void __launch_bounds__(kBlock) RasterForwardKernel(
       s_conic[threadIdx.x] = make_float3(p.conic[3 * id], p.conic[3 * id + 1], p.conic[3 * id + 2]);
       s_opacity[threadIdx.x] = p.opacity[id];
       s_color[threadIdx.x] = make_float3(p.color[3 * id], p.color[3 * id + 1], p.color[3 * id + 2]);
-      if constexpr (kTextured) {
-        s_tex.Load(in, p, id, threadIdx.x);
-        if (!s_tex.Sampled(threadIdx.x)) s_tex.FoldConstant(threadIdx.x, &s_opacity[threadIdx.x], &s_color[threadIdx.x]);
-      }
+      if constexpr (kTextured) s_tex.Load(in, p, id, threadIdx.x);
     }
     __syncthreads();
     const int in_batch = min(kBlock, count - batch);
@@ -59,11 +56,7 @@ __global__ void __launch_bounds__(kBlock) RasterForwardKernel(
       s.conic = {{s_conic[j].x, s_conic[j].y, s_conic[j].z}};
       s.opacity = s_opacity[j];
       s.color = {{s_color[j].x, s_color[j].y, s_color[j].z}};
-      // Textures of 1×1 were folded into s_opacity and s_color: those splats, like
-      // untextured ones, skip the texture path (the branch is uniform across the block).
-      bool sampled = false;
-      if constexpr (kTextured) sampled = s_tex.Sampled(j);
-      if (sampled) {
+      if constexpr (kTextured) {
         s_tex.Fill(in, j, &s);
       } else {
         s.frame = nullptr;

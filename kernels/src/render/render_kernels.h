@@ -52,19 +52,6 @@ struct TextureBatch {
     }
   }
 
-  // Whether the splat in `slot` samples its texture per pixel (larger than 1×1).
-  __device__ bool Sampled(int slot) const { return size[slot].x != 1 || size[slot].y != 1; }
-
-  // A 1×1 texture folded into the splat's opacity and colour (after Load, same thread):
-  // EvaluateSplat of the untextured splat (α·factor, c + residual) is then bit-identical
-  // to its textured evaluation, (α·factor)·G and c + residual, without the texture path.
-  __device__ void FoldConstant(int slot, float* opacity, float3* color) const {
-    const detail::ConstantTexel<float>& c = constant[slot];
-    *opacity = *opacity * c.alpha_factor;
-    *color = make_float3(color->x + c.color_residual[0], color->y + c.color_residual[1],
-                         color->z + c.color_residual[2]);
-  }
-
   // The texture fields of SplatParams for the splat in `slot`.
   __device__ void Fill(const RenderInputs& in, int slot, detail::SplatParams<float>* s) const {
     s->frame = &frame[slot];

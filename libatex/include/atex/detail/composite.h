@@ -109,10 +109,7 @@ ATEX_HD SplatSample<T> EvaluateSplat(const SplatParams<T>& s, T px, T py, const 
       out.texel = SampleTexels(s.texels, s.tex_w, out.taps);
     }
     // s.constant holds exactly these activations of its texel, computed once per splat.
-    // (α·factor)·G, in that order: a rasteriser may fold a 1×1 texture's factor into the
-    // opacity once per splat (α' = α·factor) and evaluate α'·G as an untextured splat.
-    const T factor = s.constant != nullptr ? s.constant->alpha_factor : TextureAlphaFactor(out.texel[3]);
-    alpha = (s.opacity * factor) * out.falloff;
+    alpha = base * (s.constant != nullptr ? s.constant->alpha_factor : TextureAlphaFactor(out.texel[3]));
     for (int ch = 0; ch < 3; ++ch) {
       out.color[ch] += s.constant != nullptr ? s.constant->color_residual[ch] : TextureColorResidual(out.texel[ch]);
     }

@@ -16,19 +16,7 @@ ATEX_HD float Exp(float x) { return expf(x); }
 ATEX_HD double Exp(double x) { return exp(x); }
 ATEX_HD float Log(float x) { return logf(x); }
 ATEX_HD double Log(double x) { return log(x); }
-// Device float: 1 − 2/(e^{2x} + 1) with the hardware exponential and a fast division,
-// branch-free. libdevice's tanhf switches between a polynomial and this form, so a warp
-// whose pixels straddle the switch runs both, and the texture activations call it four
-// times per pixel and splat. Absolute error within ~1e-6 of tanhf (the relative error is
-// larger near 0, where the value itself is tiny); exact at 0 (so zero texels still
-// render as no texture) and ±1 at large |x|. Host: tanhf.
-ATEX_HD float Tanh(float x) {
-#ifdef __CUDA_ARCH__
-  return 1.0f - __fdividef(2.0f, __expf(2.0f * x) + 1.0f);
-#else
-  return tanhf(x);
-#endif
-}
+ATEX_HD float Tanh(float x) { return tanhf(x); }
 ATEX_HD double Tanh(double x) { return tanh(x); }
 ATEX_HD float Floor(float x) { return floorf(x); }
 ATEX_HD double Floor(double x) { return floor(x); }
