@@ -2,7 +2,7 @@
 """PNG charts from bench/run_matrix.py results (results.csv).
 
     /usr/bin/python3 bench/charts.py RESULTS.csv [MORE.csv ...] [--out docs/charts] [--prefix NAME_]
-                                     [--variant full] [--title TEXT]
+                                     [--variant full] [--seed N] [--title TEXT]
 
 Needs matplotlib (Debian python3-matplotlib, i.e. /usr/bin/python3); exits with status 3 and a
 message when it is missing. Rows whose status is not "ok" are left out (and counted on stderr).
@@ -15,7 +15,8 @@ Writes, one panel per dataset where it applies:
   <prefix>psnr_vs_train_time.png   PSNR vs training time (stage 1 + stage 2 + fit, minutes)
   <prefix>texel_histogram.png      texel-size histogram (h x w) per scene for the textured methods
                                    at their full budget, with texel bytes per Gaussian vs uniform 4x4
-Only rows of --variant (default "full") are drawn when that variant is present.
+Only rows of --variant (default "full") are drawn when that variant is present, and with --seed
+only that seed's rows (a matrix of several seeds would otherwise join them in one line).
 """
 
 import argparse
@@ -206,6 +207,7 @@ def main(argv=None):
     p.add_argument("--out", default=os.path.join("docs", "charts"), help="output folder (default docs/charts)")
     p.add_argument("--prefix", default="", help="file name prefix, e.g. panoptic_")
     p.add_argument("--variant", default="full", help="draw only this variant when present (default full)")
+    p.add_argument("--seed", default="", help="draw only this seed's rows (default: every seed)")
     p.add_argument("--title", default="", help="appended to every chart title")
     args = p.parse_args(argv)
     try:
@@ -223,6 +225,11 @@ def main(argv=None):
         return 2
     if any(r.get("variant") == args.variant for r in rows):
         rows = [r for r in rows if r.get("variant") == args.variant]
+    if args.seed:
+        rows = [r for r in rows if str(r.get("seed")) == args.seed]
+        if not rows:
+            print("charts: no drawable rows of seed %s" % args.seed, file=sys.stderr)
+            return 2
     if skipped:
         print("charts: %d row(s) left out (failed or without PSNR)" % skipped, file=sys.stderr)
     os.makedirs(args.out, exist_ok=True)

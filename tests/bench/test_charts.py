@@ -69,6 +69,12 @@ def main():
         print("FAIL: charts.py exited with %d" % proc.returncode)
         return 1
     failures = 0
+    # --seed keeps one seed's rows; a seed without rows is an error, not empty charts.
+    absent = subprocess.run([sys.executable, args.charts, args.csv, "--out", args.out, "--seed", "12345"],
+                            capture_output=True, text=True)
+    if absent.returncode != 2 or "seed 12345" not in absent.stderr:
+        print("FAIL: --seed 12345 (no such rows) exited with %d: %s" % (absent.returncode, absent.stderr))
+        failures += 1
     for name in EXPECTED:
         path = os.path.join(args.out, name)
         try:
