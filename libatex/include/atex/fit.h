@@ -123,6 +123,10 @@ struct MeasureTiming {
   double decode_seconds = 0;      // DecodeAsset of those bytes
   double render_seconds = 0;      // probe renders: backend load + one render per probe
   double distortion_seconds = 0;  // MeanSquaredError against the reference renders
+  double reference_seconds = 0;   // the input's reference renders (once per plan)
+  double propose_seconds = 0;     // listing the candidate moves of each state (Proposals)
+  double total_seconds = 0;       // BuildPlan's whole wall time: the parts above, the prune order,
+                                  // bookkeeping and PlanOptions::accept_more (--quality's evaluations)
 };
 nlohmann::json TimingToJson(const MeasureTiming& timing);
 
@@ -163,6 +167,7 @@ struct Fitted {
   WriteOptions write;          // encodings used
   std::vector<Move> moves;     // the plan's moves that were applied (the last one possibly partial)
   std::vector<uint32_t> kept;  // input indices of the Gaussians kept, ascending
+  double refill_seconds = 0;   // of ApplyPlan's time, spent giving slack back (RefillSlack)
 };
 
 // Applies moves of `plan` in order until the encoded asset fits `budget_bytes`; the

@@ -166,6 +166,13 @@ TEST(Plan, UsesEveryLeverAndShrinksMonotonically) {
   const nlohmann::json j = TimingToJson(t);
   EXPECT_EQ(j["measurements"], t.measurements);
   EXPECT_DOUBLE_EQ(j["seconds_per_measurement"]["render"].get<double>(), t.render_seconds / t.measurements);
+  // The whole plan's time covers its measured parts; "other" is the rest, never negative.
+  EXPECT_GT(t.reference_seconds, 0.0);
+  EXPECT_GT(t.propose_seconds, 0.0);
+  EXPECT_GE(t.total_seconds, t.apply_seconds + t.encode_seconds + t.decode_seconds + t.render_seconds +
+                                 t.distortion_seconds + t.reference_seconds + t.propose_seconds);
+  EXPECT_GE(j["seconds"]["other"].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(j["seconds"]["total"].get<double>(), t.total_seconds);
 }
 
 TEST(Plan, ThousandRandomBudgetsNeverOver) {

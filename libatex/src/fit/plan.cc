@@ -77,9 +77,13 @@ std::string DescribeMove(const Move& m) {
 
 nlohmann::json TimingToJson(const MeasureTiming& t) {
   const double per = t.measurements > 0 ? 1.0 / t.measurements : 0.0;
+  const double parts = t.apply_seconds + t.encode_seconds + t.decode_seconds + t.render_seconds +
+                       t.distortion_seconds + t.reference_seconds + t.propose_seconds;
   return {{"measurements", t.measurements},
           {"seconds", {{"apply", t.apply_seconds}, {"encode", t.encode_seconds}, {"decode", t.decode_seconds},
-                       {"render", t.render_seconds}, {"distortion", t.distortion_seconds}}},
+                       {"render", t.render_seconds}, {"distortion", t.distortion_seconds},
+                       {"reference", t.reference_seconds}, {"propose", t.propose_seconds},
+                       {"other", std::max(0.0, t.total_seconds - parts)}, {"total", t.total_seconds}}},
           {"seconds_per_measurement",
            {{"apply", t.apply_seconds * per}, {"encode", t.encode_seconds * per}, {"decode", t.decode_seconds * per},
             {"render", t.render_seconds * per}, {"distortion", t.distortion_seconds * per}}}};
@@ -330,9 +334,12 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   }
   ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
   Plan plan;
+  Stopwatch whole;
   plan.prune_order = ImportanceOrder(asset, options.seed);
   // Reference: the untrimmed asset exactly as given (before any re-encoding).
+  Stopwatch reference_clock;
   ATEX_ASSIGN_OR_RETURN(std::vector<Image> reference, renderer->Render(asset));
+  plan.timing.reference_seconds = reference_clock.Lap();
 
   State state{asset, options.write, {}};
   state.kept.resize(asset.gaussians.size());
@@ -387,7 +394,9 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
 
   std::map<MoveKey, Cached> cache;
   while (current.bytes > options.floor_bytes) {
+    Stopwatch propose_clock;
     const std::vector<Move> proposals = Proposals(state, options);
+    plan.timing.propose_seconds += propose_clock.Lap();
     if (proposals.empty()) break;
     // The best evaluation made at the current state, with its state and decoded asset.
     std::optional<std::pair<MoveKey, Evaluated>> best_fresh;
@@ -446,6 +455,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
                                           current.distortion > 0 ? -10.0 * std::log10(current.distortion) : 99.0)});
     }
   }
+  plan.timing.total_seconds = whole.Lap();
   return plan;
 }
 
@@ -611,7 +621,9 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
     if (!last.divisible()) {
       // An indivisible last move (an encoding, the SH degree, the grid) can land far below the
       // budget; give the slack back by undoing moves before it, latest first.
+      Stopwatch refill_clock;
       ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes, &cache));
+      out.refill_seconds = refill_clock.Lap();
     }
   }
   if (bytes.size() > budget_bytes) {
