@@ -92,7 +92,10 @@ std::vector<size_t> TimeBatchSchedule::Views(int64_t step, int batch, int rank, 
     picks.insert(picks.end(), group.begin(), group.begin() + static_cast<std::ptrdiff_t>(take));
   }
   // Fewer views in the whole dataset than B: repeat them, as the epoch stream would.
-  for (size_t i = 0; picks.size() < static_cast<size_t>(batch); ++i) picks.push_back(picks[i]);
+  for (size_t i = 0; picks.size() < static_cast<size_t>(batch); ++i) {
+    const size_t repeat = picks[i];  // a copy: push_back may reallocate
+    picks.push_back(repeat);
+  }
   const int local = batch / world_size;
   return std::vector<size_t>(picks.begin() + static_cast<std::ptrdiff_t>(rank) * local,
                              picks.begin() + static_cast<std::ptrdiff_t>(rank + 1) * local);
