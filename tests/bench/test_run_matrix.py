@@ -107,6 +107,14 @@ class Base(unittest.TestCase):
             calls = [json.loads(l) for l in f]
         return [c for c in calls if prefix is None or c[0] == prefix]
 
+    def stage1_running(self, out_name):
+        """Whether a stage-1 train command of the run writing to `out_name` has started."""
+        try:
+            cmds = self.commands("train")
+        except (ValueError, KeyError):  # the fake is writing a line right now
+            return False
+        return any(stage(c) == "1" and out_name in " ".join(c["args"]) for c in cmds)
+
     def commands(self, prefix=None):
         """The fake's invocations from its event file: {args, gpu, omp, init_exists, start, end (None:
         killed), rc}, in start order."""
@@ -443,10 +451,14 @@ class Gpus(Base):
         # Process B (--gpus 1, another config) must get GPU 1 meanwhile, not after A's stage 1.
         self.write_config(methods={"none": {"stage2": False}, "uniform": {"textures": "uniform"}},
                           budgets=["full"], fps={"sizes": ["native"], "repeats": 3})
-        env = environment(self.matrix_env({"FAKE_ATEX_SLEEP": "--stage 1:1.5"}))
+        env = environment(self.matrix_env({"FAKE_ATEX_SLEEP": "--stage 1:6"}))
         a = subprocess.Popen([PY] + self.matrix_argv("--gpus", "0,1", out=os.path.join(self.dir, "outA")), env=env,
                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        time.sleep(0.5)  # A's workers have started: GPU 0 trains, GPU 1 waits
+        # B starts once A's stage 1 runs (GPU 0 trains, GPU 1 waits), not after a fixed delay, and
+        # that stage 1 lasts long enough for B to start a command on a loaded machine (CTest -j).
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and not self.stage1_running("outA"):
+            time.sleep(0.05)
         b = subprocess.Popen([PY] + self.matrix_argv("--gpus", "1", out=os.path.join(self.dir, "outB")), env=env,
                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         for p in (a, b):
