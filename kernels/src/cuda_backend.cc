@@ -568,6 +568,23 @@ class CudaBackend final : public Backend {
     return order;
   }
 
+  // Deforms the canonical Gaussians to `time` into the d_* buffers and zeroes their
+  // gradients (g_*), which the views of that time then accumulate.
+  Status DeformAt(double time) {
+    for (auto [buffer, width] : {std::pair{&d_positions_, 3}, std::pair{&d_log_scales_, 3},
+                                 std::pair{&d_rotations_, 4}, std::pair{&d_opacity_, 1},
+                                 std::pair{&d_sh_, 3 * sh_coeffs_}, std::pair{&g_positions_, 3},
+                                 std::pair{&g_log_scales_, 3}, std::pair{&g_rotations_, 4},
+                                 std::pair{&g_opacity_, 1}, std::pair{&g_sh_, 3 * sh_coeffs_}}) {
+      ATEX_RETURN_IF_ERROR(buffer->Resize(count_ * width));
+    }
+    for (auto* b : {&g_positions_, &g_log_scales_, &g_rotations_, &g_opacity_, &g_sh_}) {
+      ATEX_RETURN_IF_ERROR(b->Zero(stream_));
+    }
+    return deform_->Forward(deform_layout_, grid_.value.data(), mlp_.value.data(), static_cast<int>(count_),
+                            sh_coeffs_, static_cast<float>(time), Canonical(), Deformed());
+  }
+
   // Fills the render inputs of one view: the canonical Gaussians (coarse stage) or the
   // deformed ones at `time`, and where their gradients go. `new_time`: deform and zero
   // the deformed gradients; false: the previous view had the same time, so the deformed
@@ -578,28 +595,8 @@ class CudaBackend final : public Backend {
     in->sh_coeffs = sh_coeffs_;
     in->active_sh_degree = std::min(request.active_sh_degree, sh_degree_);
     for (int k = 0; k < 3; ++k) in->background[k] = request.background[k];
-    if (request.apply_deformation && !new_time) {
-      const GaussianTensors d = Deformed(), g = DeformedGrads();
-      in->positions = d.positions;
-      in->rotations = d.rotations;
-      in->log_scales = d.log_scales;
-      in->opacity = d.opacity;
-      in->sh = d.sh;
-      *grads = {g.positions, g.rotations, g.log_scales, g.opacity, g.sh, nullptr};
-    } else if (request.apply_deformation) {
-      for (auto [buffer, width] : {std::pair{&d_positions_, 3}, std::pair{&d_log_scales_, 3},
-                                   std::pair{&d_rotations_, 4}, std::pair{&d_opacity_, 1},
-                                   std::pair{&d_sh_, 3 * sh_coeffs_}, std::pair{&g_positions_, 3},
-                                   std::pair{&g_log_scales_, 3}, std::pair{&g_rotations_, 4},
-                                   std::pair{&g_opacity_, 1}, std::pair{&g_sh_, 3 * sh_coeffs_}}) {
-        ATEX_RETURN_IF_ERROR(buffer->Resize(count_ * width));
-      }
-      for (auto* b : {&g_positions_, &g_log_scales_, &g_rotations_, &g_opacity_, &g_sh_}) {
-        ATEX_RETURN_IF_ERROR(b->Zero(stream_));
-      }
-      ATEX_RETURN_IF_ERROR(deform_->Forward(deform_layout_, grid_.value.data(), mlp_.value.data(),
-                                            static_cast<int>(count_), sh_coeffs_, static_cast<float>(time),
-                                            Canonical(), Deformed()));
+    if (request.apply_deformation) {
+      if (new_time) ATEX_RETURN_IF_ERROR(DeformAt(time));
       const GaussianTensors d = Deformed(), g = DeformedGrads();
       in->positions = d.positions;
       in->rotations = d.rotations;

@@ -149,44 +149,57 @@ void ExpectSameGradients(train::Backend& cpu, train::Backend& gpu) {
   std::printf("\n");
 }
 
+// The CPU backend and a CUDA backend (FP32, as parity is measured), both loaded with `state`.
+void LoadBoth(const train::ModelState& state, bool profile, std::unique_ptr<train::Backend>* cpu,
+              std::unique_ptr<train::Backend>* gpu) {
+  CudaBackendOptions options;
+  options.tf32 = false;
+  options.profile = profile;
+  auto gpu_or = MakeCudaBackend(options);
+  ASSERT_TRUE(gpu_or.ok()) << gpu_or.status().ToString();
+  *gpu = std::move(*gpu_or);
+  *cpu = train::MakeCpuBackend();
+  ATEX_ASSERT_OK((*cpu)->Load(state));
+  ATEX_ASSERT_OK((*gpu)->Load(state));
+}
+
+// One step of `batch` on both; both must succeed with finite numbers.
+void StepBoth(train::Backend& cpu, train::Backend& gpu, std::span<const train::TrainView> batch,
+              train::StepResult* a, train::StepResult* b) {
+  const train::StepRequest request = Request();
+  auto on_cpu = cpu.Step(request, batch);
+  auto on_gpu = gpu.Step(request, batch);
+  ASSERT_TRUE(on_cpu.ok()) << on_cpu.status().ToString();
+  ASSERT_TRUE(on_gpu.ok()) << on_gpu.status().ToString();
+  ASSERT_TRUE(on_cpu->finite && on_gpu->finite);
+  *a = std::move(*on_cpu);
+  *b = std::move(*on_gpu);
+}
+
 TEST(BackendParity, StepsStatisticsEditsAndGrowthMatchTheCpuBackend) {
   ATEX_REQUIRE_CUDA_DEVICE();
   Scene scene = MakeScene(7);
-  CudaBackendOptions fp32;
-  fp32.tf32 = false;  // parity is measured in FP32
-  auto gpu_or = MakeCudaBackend(fp32);
-  ASSERT_TRUE(gpu_or.ok()) << gpu_or.status().ToString();
-  std::unique_ptr<train::Backend> gpu = std::move(*gpu_or);
-  std::unique_ptr<train::Backend> cpu = train::MakeCpuBackend();
-  ATEX_ASSERT_OK(cpu->Load(scene.state));
-  ATEX_ASSERT_OK(gpu->Load(scene.state));
+  std::unique_ptr<train::Backend> cpu, gpu;
+  ASSERT_NO_FATAL_FAILURE(LoadBoth(scene.state, /*profile=*/false, &cpu, &gpu));
 
   std::vector<train::TrainView> views;
   for (size_t k = 0; k < scene.cameras.size(); ++k) {
     views.push_back({&scene.cameras[k], &scene.targets[k], k + 1});
   }
-  const train::StepRequest request = Request();
   // Step 0: every gradient.
   {
-    std::span<const train::TrainView> batch(views.data(), 2);
-    auto a = cpu->Step(request, batch);
-    auto b = gpu->Step(request, batch);
-    ASSERT_TRUE(a.ok()) << a.status().ToString();
-    ASSERT_TRUE(b.ok()) << b.status().ToString();
-    ASSERT_TRUE(a->finite && b->finite);
-    std::printf("[backend parity] step 0: loss cpu %.8f gpu %.8f\n", a->loss, b->loss);
-    EXPECT_LE(std::abs(a->loss - b->loss), 1e-5 * std::abs(a->loss));
+    train::StepResult a, b;
+    ASSERT_NO_FATAL_FAILURE(StepBoth(*cpu, *gpu, std::span<const train::TrainView>(views.data(), 2), &a, &b));
+    std::printf("[backend parity] step 0: loss cpu %.8f gpu %.8f\n", a.loss, b.loss);
+    EXPECT_LE(std::abs(a.loss - b.loss), 1e-5 * std::abs(a.loss));
     ExpectSameGradients(*cpu, *gpu);
   }
   for (int step = 1; step < 6; ++step) {
-    std::span<const train::TrainView> batch(views.data() + (step % 2) * 2, 2);
-    auto a = cpu->Step(request, batch);
-    auto b = gpu->Step(request, batch);
-    ASSERT_TRUE(a.ok()) << a.status().ToString();
-    ASSERT_TRUE(b.ok()) << b.status().ToString();
-    ASSERT_TRUE(a->finite && b->finite);
-    const double rel = std::abs(a->loss - b->loss) / std::abs(a->loss);
-    std::printf("[backend parity] step %d: loss cpu %.7f gpu %.7f (rel %.2e)\n", step, a->loss, b->loss, rel);
+    train::StepResult a, b;
+    ASSERT_NO_FATAL_FAILURE(
+        StepBoth(*cpu, *gpu, std::span<const train::TrainView>(views.data() + (step % 2) * 2, 2), &a, &b));
+    const double rel = std::abs(a.loss - b.loss) / std::abs(a.loss);
+    std::printf("[backend parity] step %d: loss cpu %.7f gpu %.7f (rel %.2e)\n", step, a.loss, b.loss, rel);
     EXPECT_LE(rel, step <= 2 ? 1e-4 : 5e-2);  // drift after a few Adam steps, see the top of the file
   }
 
@@ -257,15 +270,8 @@ TEST(BackendParity, StepsStatisticsEditsAndGrowthMatchTheCpuBackend) {
 TEST(BackendParity, ViewsOfOneTimeShareOneDeformationPass) {
   ATEX_REQUIRE_CUDA_DEVICE();
   Scene scene = MakeScene(11);
-  CudaBackendOptions options;
-  options.tf32 = false;
-  options.profile = true;  // counts the deformation passes
-  auto gpu_or = MakeCudaBackend(options);
-  ASSERT_TRUE(gpu_or.ok()) << gpu_or.status().ToString();
-  std::unique_ptr<train::Backend> gpu = std::move(*gpu_or);
-  std::unique_ptr<train::Backend> cpu = train::MakeCpuBackend();
-  ATEX_ASSERT_OK(cpu->Load(scene.state));
-  ATEX_ASSERT_OK(gpu->Load(scene.state));
+  std::unique_ptr<train::Backend> cpu, gpu;
+  ASSERT_NO_FATAL_FAILURE(LoadBoth(scene.state, /*profile=*/true, &cpu, &gpu));  // profile: counts the passes
 
   // A second pose at the times of cameras 0 and 1: the base pose moved sideways.
   std::vector<Camera> moved = {scene.cameras[0], scene.cameras[1]};
@@ -274,15 +280,11 @@ TEST(BackendParity, ViewsOfOneTimeShareOneDeformationPass) {
                                                {&scene.cameras[1], &scene.targets[1], 2},
                                                {&moved[0], &scene.targets[0], 3},
                                                {&moved[1], &scene.targets[1], 4}};
-  const train::StepRequest request = Request();
-  auto a = cpu->Step(request, batch);
-  auto b = gpu->Step(request, batch);
-  ASSERT_TRUE(a.ok()) << a.status().ToString();
-  ASSERT_TRUE(b.ok()) << b.status().ToString();
-  ASSERT_TRUE(a->finite && b->finite);
-  std::printf("[backend parity] shared deformation: loss cpu %.8f gpu %.8f\n", a->loss, b->loss);
-  EXPECT_LE(std::abs(a->loss - b->loss), 1e-5 * std::abs(a->loss));
-  for (size_t k = 0; k < batch.size(); ++k) EXPECT_NEAR(a->view_psnr[k], b->view_psnr[k], 1e-3) << "view " << k;
+  train::StepResult a, b;
+  ASSERT_NO_FATAL_FAILURE(StepBoth(*cpu, *gpu, batch, &a, &b));
+  std::printf("[backend parity] shared deformation: loss cpu %.8f gpu %.8f\n", a.loss, b.loss);
+  EXPECT_LE(std::abs(a.loss - b.loss), 1e-5 * std::abs(a.loss));
+  for (size_t k = 0; k < batch.size(); ++k) EXPECT_NEAR(a.view_psnr[k], b.view_psnr[k], 1e-3) << "view " << k;
   ExpectSameGradients(*cpu, *gpu);
   EXPECT_EQ(gpu->Profile().value("deformation_passes", -1), 2);
 }

@@ -64,7 +64,7 @@ TimeBatchSchedule::TimeBatchSchedule(uint64_t seed, std::span<const double> view
   for (auto& [time, views] : by_time) groups_.push_back(std::move(views));
 }
 
-std::vector<size_t> TimeBatchSchedule::TimeOrder(uint64_t epoch) const {
+const std::vector<size_t>& TimeBatchSchedule::TimeOrder(uint64_t epoch) const {
   if (epoch != cached_epoch_) {
     cached_.resize(groups_.size());
     std::iota(cached_.begin(), cached_.end(), size_t{0});
@@ -85,8 +85,7 @@ std::vector<size_t> TimeBatchSchedule::Views(int64_t step, int batch, int rank, 
   // Whole groups of the permutation, from the step's own position on, until B views are drawn.
   for (uint64_t k = 0; picks.size() < static_cast<size_t>(batch) && k < times; ++k) {
     const uint64_t position = s % times + k;
-    const std::vector<size_t> order = TimeOrder(s / times + position / times);
-    std::vector<size_t> group = groups_[order[position % times]];
+    std::vector<size_t> group = groups_[TimeOrder(s / times + position / times)[position % times]];
     Shuffle(group, rng);
     const size_t take = std::min(group.size(), static_cast<size_t>(batch) - picks.size());
     picks.insert(picks.end(), group.begin(), group.begin() + static_cast<std::ptrdiff_t>(take));

@@ -45,7 +45,7 @@ class TimeBatchSchedule {
   size_t time_count() const { return groups_.size(); }
 
  private:
-  std::vector<size_t> TimeOrder(uint64_t epoch) const;
+  const std::vector<size_t>& TimeOrder(uint64_t epoch) const;  // cached: valid until the next call
   uint64_t seed_;
   std::vector<std::vector<size_t>> groups_;  // view indices per distinct time, ascending time
   mutable uint64_t cached_epoch_ = ~uint64_t{0};
