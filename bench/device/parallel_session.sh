@@ -9,6 +9,9 @@
 #   stress:  bench/configs/stress_gpu.json on all GPUs but the first (out/stress), no FPS
 #   sweep:   bench/configs/panoptic_stage1_sweep.json on all GPUs (out/sweep), with FPS
 #   sametime: bench/configs/panoptic_same_time.json on all GPUs (out/same_time), with FPS
+#   fastraster: bench/configs/panoptic_fast_raster.json on all GPUs (out/fast_raster), with FPS
+# With .oldsrc present, `start` also builds it into build-old in the background, for a later
+# bench/device/raster_ab.sh on the models these jobs train (AB_MODEL_DIR).
 # The two share GPUs through run_matrix's per-GPU lock files: one cell per GPU at a time.
 # Each call leaves OUT_DIR/results.tgz (rows, logs; no models) and OUT_DIR/progress.txt.
 source "$(dirname "$0")/common.sh"
@@ -40,19 +43,26 @@ snapshot() {
     done
     nvidia-smi --query-gpu=index,utilization.gpu,memory.used --format=csv,noheader || true
   } > "$out/progress.txt"
-  tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic out/stress out/sweep out/same_time out/*.log out/*.rc \
+  tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic out/stress out/sweep out/same_time \
+    out/fast_raster out/*.log out/*.rc \
     2>/dev/null || true
 }
 
 case $phase in
   start)
     bench/device/paper_runs.sh build "$out"
+    if [ -d .oldsrc ] && [ ! -x build-old/bin/atex ]; then
+      setsid nohup bash -c "cmake -S .oldsrc -B build-old -DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON \
+          -DCMAKE_CUDA_ARCHITECTURES=90 -DATEX_TESTS=OFF -DATEX_BENCHMARKS=OFF && \
+          nice cmake --build build-old -j 16 --target atex_cli" > out/build_old.log 2>&1 &
+    fi
     for j in ${JOBS:-session stress}; do
       case $j in
         session) launch session bench/configs/panoptic_session.json out/panoptic "$gpus" ;;
         stress) launch stress bench/configs/stress_gpu.json out/stress "$rest" --skip-fps ;;
         sweep) launch sweep bench/configs/panoptic_stage1_sweep.json out/sweep "$gpus" ;;
         sametime) launch sametime bench/configs/panoptic_same_time.json out/same_time "$gpus" ;;
+        fastraster) launch fastraster bench/configs/panoptic_fast_raster.json out/fast_raster "$gpus" ;;
         *) echo "unknown job $j" >&2; exit 2 ;;
       esac
     done

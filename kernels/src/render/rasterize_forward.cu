@@ -1,7 +1,9 @@
 // Stage 3 forward: one 16×16 thread block per tile, one thread per pixel, splats
 // streamed through shared memory in batches of 256 (gsplat's structure). The
-// per-splat mathematics is atex/detail/composite.h, as in the CPU engine.
+// per-splat mathematics is EvaluateSplat's (atex/detail/composite.h), as in the CPU
+// engine, with its textured branch in the per-pixel form of render/forward_texture.h.
 #include "cuda_check.h"
+#include "render/forward_texture.h"
 #include "render/render_kernels.h"
 
 namespace atex::cuda::render {
@@ -20,14 +22,15 @@ __global__ void __launch_bounds__(kBlock) RasterForwardKernel(
   __shared__ float3 s_conic[kBlock];
   __shared__ float s_opacity[kBlock];
   __shared__ float3 s_color[kBlock];
-  __shared__ TextureBatch<kTextured ? kBlock : 1> s_tex;
+  __shared__ ForwardTextureBatch<kTextured ? kBlock : 1> s_tex;
 
   const int tile = blockIdx.y * cam.tiles_x + blockIdx.x;
   const int x = blockIdx.x * detail::kTileSize + threadIdx.x % detail::kTileSize;
   const int y = blockIdx.y * detail::kTileSize + threadIdx.x / detail::kTileSize;
   const bool inside = x < cam.width && y < cam.height;
   const float px = float(x) + 0.5f, py = float(y) + 0.5f;
-  const Vec3<float> ray = kTextured ? detail::PixelRayDirection(cam, px, py) : Vec3<float>{{0.f, 0.f, 1.f}};
+  // Normalised image coordinates (the camera-frame ray is (c_x, c_y, 1)), for the texture planes.
+  const float c_x = (px - cam.cx) / cam.fx, c_y = (py - cam.cy) / cam.fy;
 
   const uint2 range = ranges[tile];
   const int count = static_cast<int>(range.y - range.x);
@@ -46,32 +49,32 @@ __global__ void __launch_bounds__(kBlock) RasterForwardKernel(
       s_conic[threadIdx.x] = make_float3(p.conic[3 * id], p.conic[3 * id + 1], p.conic[3 * id + 2]);
       s_opacity[threadIdx.x] = p.opacity[id];
       s_color[threadIdx.x] = make_float3(p.color[3 * id], p.color[3 * id + 1], p.color[3 * id + 2]);
-      if constexpr (kTextured) s_tex.Load(in, p, id, threadIdx.x);
+      if constexpr (kTextured) s_tex.Load(cam, in, p, id, threadIdx.x);
     }
     __syncthreads();
     const int in_batch = min(kBlock, count - batch);
     for (int j = 0; j < in_batch && !done; ++j) {
-      detail::SplatParams<float> s;
-      s.mean2d = {{s_mean[j].x, s_mean[j].y}};
-      s.conic = {{s_conic[j].x, s_conic[j].y, s_conic[j].z}};
-      s.opacity = s_opacity[j];
-      s.color = {{s_color[j].x, s_color[j].y, s_color[j].z}};
+      // EvaluateSplat (composite.h) in the same order of operations.
+      const float dx = px - s_mean[j].x, dy = py - s_mean[j].y;
+      const float power = detail::GaussianPower(Vec3<float>{{s_conic[j].x, s_conic[j].y, s_conic[j].z}}, dx, dy);
+      if (power > 0.0f) continue;
+      const float base = s_opacity[j] * detail::Exp(power);
+      float alpha = base;
+      Vec3<float> splat_color{{s_color[j].x, s_color[j].y, s_color[j].z}};
       if constexpr (kTextured) {
-        s_tex.Fill(in, j, &s);
-      } else {
-        s.frame = nullptr;
-        s.texels = nullptr;
-        s.tex_h = s.tex_w = 0;
+        // Exact early-out: the texture factor is at most e^0.1 < kTextureAlphaFactorBound.
+        if (base * float(detail::kTextureAlphaFactorBound) < float(detail::kMinSplatAlpha)) continue;
+        ApplyForwardTexture(s_tex, j, in.texels, c_x, c_y, &alpha, &splat_color);
       }
-      const detail::SplatSample<float> smp = detail::EvaluateSplat(s, px, py, ray);
-      if (!smp.contributes) continue;
-      const float next = transmittance * (1.0f - smp.alpha);
+      alpha = alpha > float(detail::kMaxSplatAlpha) ? float(detail::kMaxSplatAlpha) : alpha;
+      if (alpha < float(detail::kMinSplatAlpha)) continue;
+      const float next = transmittance * (1.0f - alpha);
       if (next < float(detail::kMinTransmittance)) {
         done = true;
         break;
       }
-      const float w = smp.alpha * transmittance;
-      for (int ch = 0; ch < 3; ++ch) color[ch] += smp.color[ch] * w;
+      const float w = alpha * transmittance;
+      for (int ch = 0; ch < 3; ++ch) color[ch] += splat_color[ch] * w;
       if constexpr (kImportance) atomicAdd(&importance[s_id[j]], w);
       transmittance = next;
       last = batch + j + 1;

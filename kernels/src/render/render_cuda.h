@@ -1,7 +1,9 @@
 // Rasterisation on the GPU, structured like gsplat: per-Gaussian projection,
 // tile intersection (radix sort of tile|depth keys), per-tile rasterisation, each
 // with its backward. Computes the functions of docs/conventions.md §4–§6 with the
-// same per-element mathematics as the CPU reference (atex/detail/*.h).
+// same per-element mathematics as the CPU reference (atex/detail/*.h); the forward
+// pass's texture sample is rearranged for speed (render/forward_texture.h), equal up to
+// float rounding and the hardware tanh.
 #pragma once
 
 #include <cstdint>

@@ -31,8 +31,9 @@ struct SplatGrads {
 };
 inline constexpr int kSplatGradWidth = 2 + 3 + 1 + 3 + 14;  // mean2d, conic, opacity, color, frame
 
-// The texture data of the splats a rasteriser block streams through shared memory, one
-// slot per splat of the batch: the frame, the layout (read once per batch instead of once
+// The texture data of the splats the backward rasteriser's block streams through shared
+// memory (the forward one uses ForwardTextureBatch, render/forward_texture.h), one slot per
+// splat of the batch: the frame, the layout (read once per batch instead of once
 // per pixel) and the activations of 1×1 textures, which are the same at every pixel.
 template <int kSlots>
 struct TextureBatch {

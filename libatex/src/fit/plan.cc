@@ -491,15 +491,43 @@ struct Refill {
   std::vector<uint8_t> bytes;
 };
 
+// The states after moves[0, k) for the descending k of RefillSlack, each built from a
+// checkpoint up to kStride moves earlier instead of from the input: replaying a whole plan
+// of ~80 moves on a 140 MB asset takes over ten seconds, and the refill needs one prefix per
+// move it tries. Valid while the moves before the checkpoint stay as they are (RefillSlack
+// only changes or removes the move it tries, at or after the checkpoint).
+class PrefixStates {
+ public:
+  PrefixStates(const Asset& asset, const WriteOptions& write, const Plan& plan)
+      : asset_(asset), write_(write), plan_(plan) {}
+
+  StatusOr<State> Before(const std::vector<Move>& moves, size_t k) {
+    if (!checkpoint_ || checkpoint_index_ > k) {
+      const size_t index = k > kStride ? k - kStride : 0;
+      ATEX_ASSIGN_OR_RETURN(State at, ApplyRange(InitialState(asset_, write_), plan_, moves, 0, index, moves.size(), 0));
+      checkpoint_ = std::move(at);
+      checkpoint_index_ = index;
+    }
+    return ApplyRange(*checkpoint_, plan_, moves, checkpoint_index_, k, moves.size(), 0);
+  }
+
+ private:
+  static constexpr size_t kStride = 8;
+  const Asset& asset_;
+  const WriteOptions& write_;
+  const Plan& plan_;
+  std::optional<State> checkpoint_;
+  size_t checkpoint_index_ = 0;
+};
+
 // The smallest count of moves[k] (the other moves as they are) whose output fits `budget`:
 // 0 if that fits, else found by bisection on [1, count); the recorded count is known to
-// fit. nullopt when no smaller count fits (the whole move is needed). The moves before k
-// are applied once, not once per trial: a texture move on a large asset takes most of a
-// second to apply.
-StatusOr<std::optional<Refill>> SmallestFittingCount(const Asset& asset, const Plan& plan, const WriteOptions& write,
+// fit. nullopt when no smaller count fits (the whole move is needed). `prefix` is the state
+// after moves[0, k), applied once, not once per trial: a texture move on a large asset
+// takes most of a second to apply.
+StatusOr<std::optional<Refill>> SmallestFittingCount(const State& prefix, const Plan& plan,
                                                      const std::vector<Move>& moves, size_t k, uint64_t budget,
                                                      EncodeCache* cache) {
-  ATEX_ASSIGN_OR_RETURN(const State prefix, ApplyRange(InitialState(asset, write), plan, moves, 0, k, moves.size(), 0));
   // With a large slack the move is usually undone entirely: one trial instead of a bisection.
   ATEX_ASSIGN_OR_RETURN(State without, ApplyRange(prefix, plan, moves, k, moves.size(), k, 0));
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> without_bytes, EncodeAsset(without.asset, without.write, cache));
@@ -533,9 +561,11 @@ StatusOr<std::optional<Refill>> SmallestFittingCount(const Asset& asset, const P
 Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
                    std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache) {
   std::optional<size_t> earliest_changed;  // index (after any removals) of the earliest move changed
+  PrefixStates prefixes(asset, write, plan);
   for (size_t k = moves->size() - 1; k-- > 0;) {  // every move before the last, latest first
+    ATEX_ASSIGN_OR_RETURN(State prefix, prefixes.Before(*moves, k));
     if (!(*moves)[k].divisible()) {
-      auto trial = ApplyRange(InitialState(asset, write), plan, *moves, 0, moves->size(), k, 0);
+      auto trial = ApplyRange(std::move(prefix), plan, *moves, k, moves->size(), k, 0);
       if (!trial.ok()) continue;  // the moves after it do not apply without it: keep it
       auto trial_bytes = EncodeAsset(trial->asset, trial->write, cache);
       if (!trial_bytes.ok() || trial_bytes->size() > budget || trial_bytes->size() <= bytes->size()) continue;
@@ -546,7 +576,7 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
       continue;
     }
     ATEX_ASSIGN_OR_RETURN(std::optional<Refill> refill,
-                          SmallestFittingCount(asset, plan, write, *moves, k, budget, cache));
+                          SmallestFittingCount(prefix, plan, *moves, k, budget, cache));
     if (!refill) break;  // move k is needed whole: the budget binds here
     *state = std::move(refill->state);
     *bytes = std::move(refill->bytes);
