@@ -36,7 +36,7 @@ struct ForwardTextureBatch {
   float4 row_v[kSlots];   // xyz = W axis_v / s_v, w = offset_u / s_u
   float4 row_n[kSlots];   // xyz = W normal,       w = offset_v / s_v
   float4 grid[kSlots];    // (½(w − 1), ½(h − 1), last x0, last y0): x0 ≤ max(w − 2, 0) so that x1 = x0 + 1
-  uint4 index[kSlots];    // (first texel's float index, row stride, x step, y step) in floats; step 0 on a side of 1
+  uint4 index[kSlots];    // (first texel, then row stride, x step, y step in floats); step 0 on a side of 1
   bool constant[kSlots];  // 1×1 texture
 
   // Gaussian `id` into `slot` (one thread per slot, before the block's __syncthreads).
@@ -44,10 +44,10 @@ struct ForwardTextureBatch {
                        int slot) {
     const uchar4 layout = reinterpret_cast<const uchar4*>(in.texture_layout)[id];  // [N][4] bytes (h, w, axes)
     const int h = layout.x, w = layout.y;
-    const uint32_t first = in.texel_offsets[id] * 4;
+    const uint32_t first = in.texel_offsets[id];  // in texels: the pool may exceed 2^32 floats
     constant[slot] = h == 1 && w == 1;
     if (constant[slot]) {
-      const detail::ConstantTexel<float> t = detail::MakeConstantTexel(in.texels + first);
+      const detail::ConstantTexel<float> t = detail::MakeConstantTexel(in.texels + size_t(first) * 4);
       row_u[slot] = make_float4(t.color_residual[0], t.color_residual[1], t.color_residual[2], t.alpha_factor);
       return;
     }
@@ -81,8 +81,9 @@ __device__ __forceinline__ float ClampToUnit(float x) { return fminf(fmaxf(x, -1
 
 // One axis of the corner-aligned bilinear taps for a clamped coordinate in [−1, 1]:
 // the grid coordinate g = (c + 1)·½(size − 1), origin x0 = min(floor g, max(size − 2, 0))
-// and weight g − x0 of x0 + 1. Equal to MakeTexelTap's sample: at g = size − 1 that takes
-// the last texel with weight 1 − 0, this one with weight 1 (and the one before with 0).
+// and weight g − x0 of x0 + 1. The same sample as MakeTexelTap's: the two differ only at
+// g = size − 1, where MakeTexelTap weighs the last texel 1 as its i0 and this weighs it 1 as
+// x0 + 1 (and the one before it 0). A side of 1 gives x0 = 0, weight 0 and a step of 0.
 __device__ __forceinline__ float TapOrigin(float coordinate, float half_extent, float last_origin, float* frac) {
   const float g = (coordinate + 1.0f) * half_extent;
   const float origin = fminf(floorf(g), last_origin);
@@ -116,7 +117,7 @@ __device__ __forceinline__ void ApplyForwardTexture(const ForwardTextureBatch<kS
   float fx, fy;
   const float x0 = TapOrigin(u, grid.x, grid.z, &fx);
   const float y0 = TapOrigin(v, grid.y, grid.w, &fy);
-  const float* t00 = texels + index.x + uint32_t(y0) * index.y + uint32_t(x0) * 4u;
+  const float* t00 = texels + size_t(index.x) * 4 + (uint32_t(y0) * index.y + uint32_t(x0) * 4u);
   const float4 a = __ldg(reinterpret_cast<const float4*>(t00));
   const float4 b = __ldg(reinterpret_cast<const float4*>(t00 + index.z));
   const float4 c = __ldg(reinterpret_cast<const float4*>(t00 + index.w));

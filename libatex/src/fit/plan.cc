@@ -493,8 +493,8 @@ struct Refill {
 
 // The states after moves[0, k) for the descending k of RefillSlack, each built from a
 // checkpoint up to kStride moves earlier instead of from the input: replaying a whole plan
-// of ~80 moves on a 140 MB asset takes over ten seconds, and the refill needs one prefix per
-// move it tries. Valid while the moves before the checkpoint stay as they are (RefillSlack
+// of 78 moves on a 140 MB asset takes ~13 s (0.17 s per move applied, measured on the
+// Panoptic uniform fit), and the refill needs one prefix per move it tries. Valid while the moves before the checkpoint stay as they are (RefillSlack
 // only changes or removes the move it tries, at or after the checkpoint).
 class PrefixStates {
  public:
