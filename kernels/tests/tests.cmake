@@ -32,6 +32,8 @@ endif()
 
 # Rasteriser and whole-backend parity with the CPU reference; they reuse the render
 # module's random scenes (libatex/src/render/render_test_util.cc).
+# The forward rasteriser's texture sample against the reference functions: CPU only (runs in CI).
+atex_cuda_test(forward_texture_test forward_texture_test.cc)
 atex_cuda_test(render_parity_test render_parity_test.cc)
 atex_cuda_test(backend_parity_test backend_parity_test.cc)
 foreach(t render_parity_test backend_parity_test)
