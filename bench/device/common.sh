@@ -8,3 +8,28 @@ atex=$BUILD/bin/atex
 bb=.devdata/panoptic_basketball
 lego=.devdata/dnerf_lego_tiny/tiny_dnerf_data.npz
 mkdir -p out
+
+# Configures source tree SRC for a Release CUDA build (sm_90) in DIR and builds TARGET... with
+# JOBS parallel jobs; BUILD_TREE_OPTIONS adds cmake options.
+build_tree() {  # SRC DIR JOBS TARGET...
+  local src=$1 dir=$2 jobs=$3
+  shift 3
+  # shellcheck disable=SC2086  # the options are words
+  cmake -S "$src" -B "$dir" -DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES=90 \
+    ${BUILD_TREE_OPTIONS:-} > /dev/null
+  cmake --build "$dir" -j "$jobs" --target "$@"
+}
+
+# The CLI of .oldsrc (an earlier commit: `git archive COMMIT | tar -x -C .oldsrc`) in build-old,
+# for A/B runs against the current tree.
+build_old() {  # JOBS
+  BUILD_TREE_OPTIONS="-DATEX_TESTS=OFF -DATEX_BENCHMARKS=OFF" build_tree .oldsrc build-old "$1" atex_cli
+}
+
+# The shortened Panoptic stage-1 model of the A/B scripts, DIR/stage1.atex (6,000 fine steps,
+# report DIR/stage1.train.json), trained on GPU unless DIR has it already.
+train_short_stage1() {  # DIR GPU
+  [ -f "$1/stage1.atex" ] && return 0
+  CUDA_VISIBLE_DEVICES=$2 "$atex" train --data "$bb" --stage 1 --out "$1/stage1.atex" --json \
+    --set stage1.fine_iterations=6000 > "$1/stage1.train.json" 2> "$1/stage1.log"
+}

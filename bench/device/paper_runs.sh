@@ -13,9 +13,8 @@ log() { echo "== $(date +%T) $*" >&2; }
 
 case $phase in
   build)
-    cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES=90 >/dev/null
-    cmake --build "$BUILD" -j "$(nproc)" --target atex_cli backend_parity_test deform_parity_test \
-      render_parity_test loss_parity_test 2>&1 | tail -3
+    build_tree . "$BUILD" "$(nproc)" atex_cli backend_parity_test deform_parity_test render_parity_test \
+      loss_parity_test 2>&1 | tail -3
     nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader | tee "$out/gpu.txt"
     # All four parity tests, on the first GPU, with their measured errors kept.
     CUDA_VISIBLE_DEVICES=0 ctest --test-dir "$BUILD" -R parity --output-on-failure -V > "$out/parity.log" 2>&1 || true

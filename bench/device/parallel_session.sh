@@ -52,9 +52,7 @@ case $phase in
   start)
     bench/device/paper_runs.sh build "$out"
     if [ -d .oldsrc ] && [ ! -x build-old/bin/atex ]; then
-      setsid nohup bash -c "cmake -S .oldsrc -B build-old -DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON \
-          -DCMAKE_CUDA_ARCHITECTURES=90 -DATEX_TESTS=OFF -DATEX_BENCHMARKS=OFF && \
-          nice cmake --build build-old -j 16 --target atex_cli" > out/build_old.log 2>&1 &
+      setsid nohup nice bash -c "source bench/device/common.sh && build_old 16" > out/build_old.log 2>&1 &
     fi
     for j in ${JOBS:-session stress}; do
       case $j in

@@ -15,17 +15,14 @@ OLD=build-old
 models=${AB_MODEL_DIR:-out/ab}
 mkdir -p "$out" "$models"
 compact() { python3 -c 'import json, sys; print(json.dumps(json.load(sys.stdin)))'; }
-cmake_flags=(-DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES=90)
 jobs=$(( $(nproc) / 2 ))
 
-cmake -S . -B "$BUILD" "${cmake_flags[@]}" >/dev/null
-cmake --build "$BUILD" -j "$jobs" --target atex_cli render_parity_test backend_parity_test deform_parity_test \
+build_tree . "$BUILD" "$jobs" atex_cli render_parity_test backend_parity_test deform_parity_test \
   loss_parity_test 2>&1 | tail -1
 nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader | tee "$out/gpu.txt"
 
 if [ ! -f "$models/adaptive.atex" ]; then
-  (CUDA_VISIBLE_DEVICES=0 "$atex" train --data "$bb" --stage 1 --out "$models/stage1.atex" --json \
-     --set stage1.fine_iterations=6000 > "$out/ab_stage1.json" 2> out/ab_stage1.log &&
+  (train_short_stage1 "$models" 0 && cp "$models/stage1.train.json" "$out/ab_stage1.json" &&
    CUDA_VISIBLE_DEVICES=0 "$atex" train --data "$bb" --stage 2 --init "$models/stage1.atex" --textures adaptive \
      --set stage2.iterations=1200 --out "$models/adaptive.atex" --json > "$out/ab_adaptive.json" 2> out/ab_adaptive.log) &
   train=$!
@@ -38,8 +35,7 @@ fi
 
 # The other builds, in parallel with the training (half the cores each for old and the variants).
 while pgrep -f "cmake --build build-old" >/dev/null; do sleep 2; done  # parallel_session's background build
-(cmake -S .oldsrc -B "$OLD" "${cmake_flags[@]}" -DATEX_TESTS=OFF -DATEX_BENCHMARKS=OFF >/dev/null &&
- cmake --build "$OLD" -j "$jobs" --target atex_cli) > out/build_old.log 2>&1 &
+build_old "$jobs" > out/build_old.log 2>&1 &
 builds=("$!")
 variant_builds=()
 for name in ${AB_VARIANTS:-}; do
@@ -48,8 +44,7 @@ for name in ${AB_VARIANTS:-}; do
   tar -c --exclude='./build*' --exclude=./bg --exclude=./out --exclude=./.devdata --exclude=./.oldsrc \
     --exclude=./.git . | tar -x -C "$src"
   (cd "$src" && bash "../../out/probe/$name.sh")
-  (cmake -S "$src" -B "build-$name" "${cmake_flags[@]}" >/dev/null &&
-   cmake --build "build-$name" -j "$jobs" --target atex_cli render_parity_test backend_parity_test) \
+  build_tree "$src" "build-$name" "$jobs" atex_cli render_parity_test backend_parity_test \
     > "out/build_$name.log" 2>&1 &
   builds+=("$!")
   variant_builds+=("build-$name")

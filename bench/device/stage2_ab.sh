@@ -9,21 +9,14 @@ out=$1
 OLD=build-old
 models=out/ab2
 mkdir -p "$out" "$models"
-cmake_flags=(-DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES=90 -DATEX_TESTS=OFF
-             -DATEX_BENCHMARKS=OFF)
 jobs=$(( $(nproc) / 2 ))
-(cmake -S . -B "$BUILD" "${cmake_flags[@]}" >/dev/null && cmake --build "$BUILD" -j "$jobs" --target atex_cli) \
-  > out/build_new.log 2>&1 &
+build_tree . "$BUILD" "$jobs" atex_cli > out/build_new.log 2>&1 &
 new_build=$!
-(cmake -S .oldsrc -B "$OLD" "${cmake_flags[@]}" >/dev/null && cmake --build "$OLD" -j "$jobs" --target atex_cli) \
-  > out/build_old.log 2>&1 &
+build_old "$jobs" > out/build_old.log 2>&1 &
 old_build=$!
 wait "$new_build" || { tail -5 out/build_new.log; exit 1; }
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | head -1 | tee "$out/gpu.txt"
-if [ ! -f "$models/stage1.atex" ]; then
-  CUDA_VISIBLE_DEVICES=0 "$atex" train --data "$bb" --stage 1 --out "$models/stage1.atex" --json \
-    --set stage1.fine_iterations=6000 > "$models/stage1.train.json" 2> out/ab2_stage1.log
-fi
+train_short_stage1 "$models" 0
 wait "$old_build" || { tail -5 out/build_old.log; exit 1; }
 gpu=0
 for bin in "$OLD" "$BUILD"; do

@@ -14,9 +14,8 @@ compact() { python3 -c 'import json, sys; print(json.dumps(json.load(sys.stdin))
 
 case $1 in
   build-old)
-    cmake -S .oldsrc -B "$OLD" -DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES=90 \
-      -DATEX_TESTS=OFF -DATEX_BENCHMARKS=OFF > /dev/null
-    cmake --build "$OLD" -j "$(nproc)" --target atex_cli 2>&1 | tail -1
+    BUILD_TREE_OPTIONS="-DATEX_TESTS=OFF -DATEX_BENCHMARKS=OFF" build_tree .oldsrc "$OLD" "$(nproc)" atex_cli 2>&1 |
+      tail -1
     ;;
   renders)
     for model in out/sweep/models/basketball/*/s6666/stage1.atex; do

@@ -62,12 +62,11 @@ __global__ void __launch_bounds__(kBlock) RasterForwardKernel(
       float alpha = base;
       Vec3<float> splat_color{{s_color[j].x, s_color[j].y, s_color[j].z}};
       if constexpr (kTextured) {
-        // Exact early-out: the texture factor is at most e^0.1 < kTextureAlphaFactorBound.
-        if (base * float(detail::kTextureAlphaFactorBound) < float(detail::kMinSplatAlpha)) continue;
+        if (detail::TexturedSampleIsCut(base)) continue;
         ApplyForwardTexture(s_tex, j, in.texels, c_x, c_y, &alpha, &splat_color);
       }
-      alpha = alpha > float(detail::kMaxSplatAlpha) ? float(detail::kMaxSplatAlpha) : alpha;
-      if (alpha < float(detail::kMinSplatAlpha)) continue;
+      alpha = detail::ClampSplatAlpha(alpha);
+      if (!detail::SplatAlphaKept(alpha)) continue;
       const float next = transmittance * (1.0f - alpha);
       if (next < float(detail::kMinTransmittance)) {
         done = true;

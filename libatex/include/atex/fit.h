@@ -167,7 +167,8 @@ struct Fitted {
   WriteOptions write;          // encodings used
   std::vector<Move> moves;     // the plan's moves that were applied (the last one possibly partial)
   std::vector<uint32_t> kept;  // input indices of the Gaussians kept, ascending
-  double refill_seconds = 0;   // of ApplyPlan's time, spent giving slack back (RefillSlack)
+  double apply_seconds = 0;    // ApplyPlan's wall time
+  double refill_seconds = 0;   // of which giving slack back below an indivisible last move
 };
 
 // Applies moves of `plan` in order until the encoded asset fits `budget_bytes`; the

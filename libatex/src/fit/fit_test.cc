@@ -290,6 +290,9 @@ TEST(Plan, SlackBelowAnIndivisibleMoveReachesEarlierDivisibleMoves) {
   ASSERT_TRUE(fitted.ok()) << fitted.status().ToString();
   EXPECT_LE(fitted->bytes.size(), budget);
   EXPECT_GT(fitted->bytes.size(), both_undone) << "the slack left by undoing the small prunes is spent";
+  // This fit refilled, inside ApplyPlan's time.
+  EXPECT_GT(fitted->refill_seconds, 0.0);
+  EXPECT_GE(fitted->apply_seconds, fitted->refill_seconds);
   // Both small prunes are gone and the large one is partly undone.
   ASSERT_EQ(fitted->moves.size(), 2u);
   EXPECT_EQ(fitted->moves[0].lever, Lever::kPrune);

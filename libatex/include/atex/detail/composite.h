@@ -31,6 +31,23 @@ ATEX_HD void GaussianPowerVjp(const Vec3<T>& conic, T dx, T dy, T g_power, Vec3<
   (*g_mean2d)[1] += (conic[1] * dx + conic[2] * dy) * g_power;
 }
 
+// The alpha cut of a sample: α̃ = min(0.99, α), kept when !(α̃ < 1/255) (a NaN is kept).
+template <typename T>
+ATEX_HD T ClampSplatAlpha(T alpha) {
+  return alpha > T(kMaxSplatAlpha) ? T(kMaxSplatAlpha) : alpha;
+}
+template <typename T>
+ATEX_HD bool SplatAlphaKept(T clamped_alpha) {
+  return !(clamped_alpha < T(kMinSplatAlpha));
+}
+// Exact early-out before sampling a texture: the texture factor is at most e^0.1 <
+// kTextureAlphaFactorBound, so a textured sample of α·G = `base` below this is cut whatever
+// its texels.
+template <typename T>
+ATEX_HD bool TexturedSampleIsCut(T base) {
+  return base * T(kTextureAlphaFactorBound) < T(kMinSplatAlpha);
+}
+
 // A 1×1 texture is the same texel wherever a ray meets its plane, so its sample needs
 // no texture coordinates and its activations are the same at every pixel: a rasteriser
 // may compute them once per splat and view (most adaptive textures stay 1×1).
@@ -95,8 +112,7 @@ ATEX_HD SplatSample<T> EvaluateSplat(const SplatParams<T>& s, T px, T py, const 
   T alpha = base;
   out.color = s.color;
   if (s.frame != nullptr) {
-    // Exact early-out: the texture factor is at most e^0.1 < kTextureAlphaFactorBound.
-    if (base * T(kTextureAlphaFactorBound) < T(kMinSplatAlpha)) return out;
+    if (TexturedSampleIsCut(base)) return out;
     if (s.tex_h == 1 && s.tex_w == 1) {
       // The taps of a 1×1 grid are (0, 0) with zero fractions whatever (u, v), and the
       // coordinates get no gradient (the four taps are one texel): skip the ray–plane step.
@@ -115,8 +131,8 @@ ATEX_HD SplatSample<T> EvaluateSplat(const SplatParams<T>& s, T px, T py, const 
     }
   }
   out.alpha_clamped = alpha > T(kMaxSplatAlpha);
-  out.alpha = out.alpha_clamped ? T(kMaxSplatAlpha) : alpha;
-  out.contributes = !(out.alpha < T(kMinSplatAlpha));
+  out.alpha = ClampSplatAlpha(alpha);
+  out.contributes = SplatAlphaKept(out.alpha);
   return out;
 }
 
