@@ -6,6 +6,7 @@ valid PNG (signature, IHDR, CRC of every chunk, IEND) of a plausible size.
 Exit status 77 (CTest SKIP_RETURN_CODE) when this interpreter has no matplotlib.
 """
 import argparse
+import csv
 import os
 import struct
 import subprocess
@@ -74,6 +75,14 @@ def main():
                             capture_output=True, text=True)
     if absent.returncode != 2 or "seed 12345" not in absent.stderr:
         print("FAIL: --seed 12345 (no such rows) exited with %d: %s" % (absent.returncode, absent.stderr))
+        failures += 1
+    # A seed that has rows draws them (into a folder of its own, so the checks below see the full run).
+    with open(args.csv) as f:
+        seed = next(csv.DictReader(f))["seed"]
+    one_seed = subprocess.run([sys.executable, args.charts, args.csv, "--out", os.path.join(args.out, "one_seed"),
+                               "--seed", seed], capture_output=True, text=True)
+    if one_seed.returncode != 0 or not os.path.exists(os.path.join(args.out, "one_seed", EXPECTED[0])):
+        print("FAIL: --seed %s exited with %d: %s" % (seed, one_seed.returncode, one_seed.stderr))
         failures += 1
     for name in EXPECTED:
         path = os.path.join(args.out, name)
