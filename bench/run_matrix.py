@@ -59,7 +59,8 @@ Config (JSON; see bench/configs/*.json):
   fit             {"args": [...], "pass_data": true, "budget_unit": "bytes" | "mib"}   (pass_data: --data and
                   the dataset's --timesteps/--downscale/--dataset-kind; --backend is always passed)
   fps             {"sizes": ["native", "1352x1014"], "repeats": 100, "view": "test:0"}
-  eval            {"args": [...]}
+  eval            {"args": [...], "train_split": false}   (train_split: also `atex eval --split train`, giving
+                  the row's train_psnr/train_ssim: how much of the test score is fit and how much is held out)
   backend         "auto" | "cuda" | "cpu"          (passed as --backend to train/eval/fps)
   only, skip      regular expressions over cell ids that restrict the cross product
   psnr_floor      cells below this mean test PSNR are failure rows (default 10)
@@ -236,6 +237,9 @@ def load_config(path):
             raise ConfigError("fps size %r: 'native' or WxH" % size)
     ev = cfg.setdefault("eval", {})
     ev["args"] = as_list(ev.get("args"), "eval args")
+    ev.setdefault("train_split", False)
+    if not isinstance(ev["train_split"], bool):
+        raise ConfigError("eval.train_split: true or false")
     cfg.setdefault("backend", "auto")
     cfg.setdefault("psnr_floor", 10.0)
     cfg.setdefault("command_timeout", 0)
@@ -618,6 +622,10 @@ class Matrix:
         eval_argv = ["eval", model] + self.data_args(cell, for_eval=True) + self.cfg["eval"]["args"] + \
                     ["--backend", self.cfg["backend"], "--json"]
         ev, _ = self.run.run("eval", eval_argv, j("eval.json"), j("eval.log"))
+        train_ev = None
+        if self.cfg["eval"]["train_split"]:
+            train_ev, _ = self.run.run("eval train", eval_argv + ["--split", "train"], j("eval_train.json"),
+                                       j("eval_train.log"))
         info, _ = self.run.run("info", ["info", model, "--json"], j("info.json"), j("info.log"))
         fps_cfg = self.cfg["fps"]
         dataset = self.cfg["datasets"][cell["dataset"]]
@@ -635,6 +643,11 @@ class Matrix:
         row["model_bytes"] = os.path.getsize(model)
         row["model_mib"] = row["model_bytes"] / MIB
         self.add_eval(row, ev)
+        if train_ev is not None:
+            if not isinstance(train_ev, dict) or not isinstance(train_ev.get("mean"), dict):
+                raise StepFailed("eval train", "eval JSON has no 'mean'")
+            row["train_psnr"] = train_ev["mean"].get("psnr")
+            row["train_ssim"] = train_ev["mean"].get("ssim")
         self.add_info(row, info)
         for size, f in fps.items():
             key = "native" if size == "native" else size
@@ -764,7 +777,8 @@ def write_csv(rows, path):
     cams = sorted({c["camera"] for r in rows for c in r.get("cameras", []) if c.get("camera") is not None})
     cam_cols = ["%s_cam%d" % (m, c) for c in cams for m in ("psnr", "ssim", "dssim1", "dssim2")]
     gpu_col = ["gpu"] if any("gpu" in r for r in rows) else []  # only from runs with --gpus
-    header = CSV_FIXED + gpu_col + fps_cols + cam_cols
+    train_cols = ["train_psnr", "train_ssim"] if any("train_psnr" in r for r in rows) else []  # eval.train_split
+    header = CSV_FIXED + gpu_col + train_cols + fps_cols + cam_cols
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)

@@ -230,6 +230,14 @@ TEST(BackendParity, StepsStatisticsEditsAndGrowthMatchTheCpuBackend) {
   ASSERT_TRUE(resize.ok());
   ATEX_ASSERT_OK(cpu->ResizeTextures(*resize));
   ATEX_ASSERT_OK(gpu->ResizeTextures(*resize));
+  // A second growth with rescaled moments (Stage2Config::rescale_grown_moments).
+  train::ModelState once;
+  ATEX_ASSERT_OK(cpu->Save(&once));
+  auto again = train::PlanTextureGrowth(*once.textures, evidence, growth, 16 * before.gaussians.size(), nullptr);
+  ASSERT_TRUE(again.ok());
+  again->rescale_moments = true;
+  ATEX_ASSERT_OK(cpu->ResizeTextures(*again));
+  ATEX_ASSERT_OK(gpu->ResizeTextures(*again));
   train::GaussianEdit edit;
   for (uint32_t i = 0; i < before.gaussians.size(); i += 2) edit.source.push_back(i);  // drop every other
   edit.source.push_back(5);                                                            // and clone one
@@ -248,11 +256,13 @@ TEST(BackendParity, StepsStatisticsEditsAndGrowthMatchTheCpuBackend) {
   const double e_texels = RelativeError(cb.textures->texels, ca.textures->texels);
   const double e_positions = RelativeError(cb.gaussians.positions, ca.gaussians.positions);
   const double e_m = RelativeError(cb.m_texels, ca.m_texels);
-  std::printf("[backend parity] after growth + edit: texels %.2e positions %.2e texel moments %.2e\n", e_texels,
-              e_positions, e_m);
+  const double e_v = RelativeError(cb.v_texels, ca.v_texels);
+  std::printf("[backend parity] after growth + edit: texels %.2e positions %.2e texel moments %.2e / %.2e\n",
+              e_texels, e_positions, e_m, e_v);
   EXPECT_LE(e_texels, 1e-2);
   EXPECT_LE(e_positions, 1e-3);
   EXPECT_LE(e_m, 5e-2);
+  EXPECT_LE(e_v, 5e-2);
 
   train::RenderRequest render;
   render.active_sh_degree = 1;

@@ -237,6 +237,24 @@ class Matrix(Base):
         self.assertIn("9 skipped", stdout)
         self.assertEqual(len(self.calls()), calls, "a resumed matrix must not run anything")
 
+    def test_train_split_adds_the_training_views_scores(self):
+        self.write_config(eval={"train_split": True}, budgets=["full"])
+        rc, stdout, stderr = self.matrix()
+        self.assertEqual(rc, 0, stderr + stdout)
+        rows = self.rows()
+        self.assertEqual(len(rows), 3)
+        for r in rows.values():
+            self.assertAlmostEqual(r["train_psnr"], r["psnr"] + 1.5, msg=r["cell"])
+        evals = self.calls("eval")
+        self.assertEqual(len([c for c in evals if "--split" in c and c[c.index("--split") + 1] == "train"]), 3)
+        self.assertEqual(len([c for c in evals if "--split" not in c]), 3)
+        with open(os.path.join(self.out, "results.csv")) as f:
+            self.assertIn("train_psnr", next(csv.reader(f)))
+        self.write_config(eval={"train_split": "yes"})
+        rc, _, stderr = self.matrix("--dry-run")
+        self.assertEqual(rc, 2, stderr)
+        self.assertIn("train_split", stderr)
+
     def test_failures_become_rows_and_retry_failed_reruns_them(self):
         rc, stdout, stderr = self.matrix(env={"FAKE_ATEX_FAIL": "--textures adaptive"})
         self.assertEqual(rc, 0, stderr)

@@ -68,7 +68,8 @@ static void to_json(nlohmann::json& j, const Stage2Config& c) {
        {"anisotropy_ratio", c.anisotropy_ratio},
        {"anisotropy_max_scale", c.anisotropy_max_scale},
        {"texel_budget_fraction", c.texel_budget_fraction},
-       {"ablations", c.ablations}};
+       {"ablations", c.ablations},
+       {"rescale_grown_moments", c.rescale_grown_moments}};
 }
 static void from_json(const nlohmann::json& j, Stage2Config& c) {
   c.iterations = j.value("iterations", c.iterations);
@@ -87,6 +88,7 @@ static void from_json(const nlohmann::json& j, Stage2Config& c) {
   c.anisotropy_max_scale = j.value("anisotropy_max_scale", c.anisotropy_max_scale);
   c.texel_budget_fraction = j.value("texel_budget_fraction", c.texel_budget_fraction);
   c.ablations = j.value("ablations", c.ablations);
+  c.rescale_grown_moments = j.value("rescale_grown_moments", c.rescale_grown_moments);
 }
 
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(TrainConfig, seed, stage1, stage2, background, near_plane, eval_every,

@@ -7,6 +7,7 @@
 
 #include "atex/deform.h"
 #include "atex/detail/adam.h"
+#include "atex/detail/texture.h"
 #include "atex/metrics.h"
 #include "atex/render.h"
 #include "atex/train/backend.h"
@@ -325,6 +326,16 @@ class CpuBackend final : public Backend {
     std::vector<float>* extra[] = {&state_.m_texels, &state_.v_texels};
     ATEX_ASSIGN_OR_RETURN(TexturePool grown,
                           atex::ResizeTextures<float>(*state_.textures, resize.heights, resize.widths, extra));
+    if (resize.rescale_moments) {
+      const TexturePool& old = *state_.textures;
+      for (size_t i = 0; i < grown.size(); ++i) {
+        const float share = detail::GrownMomentShare<float>(old.heights[i], old.widths[i], grown.heights[i], grown.widths[i]);
+        for (size_t k = size_t(grown.offsets[i]) * 4; k < size_t(grown.offsets[i + 1]) * 4; ++k) {
+          state_.m_texels[k] *= share;
+          state_.v_texels[k] *= share * share;
+        }
+      }
+    }
     state_.textures = std::move(grown);
     return Status::Ok();
   }

@@ -464,6 +464,7 @@ class Loop {
       GrowthReport report;
       ATEX_ASSIGN_OR_RETURN(TextureResize resize,
                             PlanTextureGrowth(*layout.textures, evidence, config_.stage2, texel_budget_, &report));
+      resize.rescale_moments = config_.stage2.rescale_grown_moments;
       ATEX_RETURN_IF_ERROR(backend_.ResizeTextures(resize));
       ATEX_RETURN_IF_ERROR(backend_.ResetStats(kStatsTexture));
       summary_.growths.push_back(report);

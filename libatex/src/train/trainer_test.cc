@@ -219,6 +219,54 @@ TEST(TrainerLego, GrowthThroughTheBackendLeavesRendersUnchanged) {
   EXPECT_LE(worst, 1e-5);
 }
 
+// Stage2Config::rescale_grown_moments: the same texels, and moments equal to the interpolated
+// ones times a (m) and a² (v), a = old texels / new texels of that Gaussian.
+TEST(TrainerLego, RescaledGrowthScalesTheInterpolatedMomentsByTheTexelShare) {
+  ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  auto data = OpenLego(path);
+  ASSERT_NE(data, nullptr);
+  TrainConfig config = SmallConfig();
+  config.stage1.coarse_iterations = 30;
+  config.stage1.fine_iterations = 10;
+  config.stage2.iterations = 10;
+  config.stage2.growth_steps = {5};
+  TrainerOptions options;
+  options.config = config;
+  auto trainer_backend = MakeCpuBackend();
+  ASSERT_TRUE(Train(*data, *trainer_backend, options).ok());
+  ModelState state;
+  ASSERT_TRUE(trainer_backend->Save(&state).ok());
+  ASSERT_TRUE(state.textures.has_value());
+  TextureResize interpolate{state.textures->heights, state.textures->widths};
+  for (size_t i = 0; i < interpolate.heights.size(); ++i) {  // every texture grows: 1 -> 2 or 4 rows, 2 -> 4 columns
+    interpolate.heights[i] = static_cast<uint8_t>(i % 3 == 0 ? 4 : std::min(4, interpolate.heights[i] * 2));
+    interpolate.widths[i] = static_cast<uint8_t>(std::min(4, interpolate.widths[i] * 2));
+  }
+  TextureResize rescale = interpolate;
+  rescale.rescale_moments = true;
+  ModelState a, b;
+  for (auto [resize, out] : {std::pair{&interpolate, &a}, std::pair{&rescale, &b}}) {
+    auto backend = MakeCpuBackend();
+    ASSERT_TRUE(backend->Load(state).ok());
+    ASSERT_TRUE(backend->ResizeTextures(*resize).ok());
+    ASSERT_TRUE(backend->Save(out).ok());
+  }
+  ASSERT_EQ(a.textures->texels, b.textures->texels);
+  ASSERT_EQ(a.m_texels.size(), b.m_texels.size());
+  size_t checked = 0;
+  for (size_t i = 0; i < a.textures->size(); ++i) {
+    const double share = double(state.textures->heights[i] * state.textures->widths[i]) /
+                         double(a.textures->heights[i] * a.textures->widths[i]);
+    ASSERT_LT(share, 1.0);
+    for (uint64_t k = a.textures->offsets[i] * 4; k < a.textures->offsets[i + 1] * 4; ++k) {
+      EXPECT_NEAR(b.m_texels[k], share * a.m_texels[k], 1e-6 * std::abs(a.m_texels[k]) + 1e-30);
+      EXPECT_NEAR(b.v_texels[k], share * share * a.v_texels[k], 1e-6 * a.v_texels[k] + 1e-30);
+      checked += a.v_texels[k] > 0;
+    }
+  }
+  EXPECT_GT(checked, a.v_texels.size() / 2) << "the moments must be non-zero for the check to mean anything";
+}
+
 TEST(TrainerLego, ResumeFromACheckpointReproducesTheUninterruptedRun) {
   ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
   auto data = OpenLego(path);

@@ -273,4 +273,12 @@ ATEX_HD void UpsampleTexture(const T* src /* [h][w][channels] */, int height, in
   }
 }
 
+// Stage2Config::rescale_grown_moments: the factor a = old texels / new texels by which a
+// grown texture's interpolated Adam moments are multiplied (m by a, v by a²). When a texture's
+// gradient is spread evenly over it, one new texel receives a of what one old texel received.
+template <typename T>
+ATEX_HD T GrownMomentShare(int height, int width, int new_height, int new_width) {
+  return T(height * width) / T(new_height * new_width);
+}
+
 }  // namespace atex::detail

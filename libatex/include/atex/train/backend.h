@@ -131,6 +131,9 @@ struct GaussianEdit {
 struct TextureResize {
   std::vector<uint8_t> heights;  // [N]
   std::vector<uint8_t> widths;   // [N]
+  // Stage2Config::rescale_grown_moments: after interpolation, Adam's m × a and v × a² per
+  // Gaussian, a = old texel count / new texel count.
+  bool rescale_moments = false;
 };
 
 struct RenderRequest {

@@ -121,6 +121,12 @@ struct Stage2Config {
   // Global texel budget as a fraction of what uniform 4x4 would use (16 texels per Gaussian).
   double texel_budget_fraction = 1.0;
   GrowthAblations ablations;
+  // false (the paper): a grown texture's Adam moments are bilinear interpolations of the old
+  // ones, like its texels. true [not in the paper]: they are then multiplied by a (m) and a² (v),
+  // a = old texels / new texels, the share of the old texel's gradient that one new texel gets
+  // when the gradient is spread evenly; otherwise the old v, kept for ~1/(1 − β2) = 1,000 steps,
+  // holds a grown texel's step at a fraction of the learning rate (BENCHMARKS.md, stage 2).
+  bool rescale_grown_moments = false;
   // [choice] the 4DGS parameters continue at stage 1's final learning rates.
 };
 
