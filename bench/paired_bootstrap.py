@@ -2,7 +2,7 @@
 """Paired bootstrap 95% confidence intervals of a PSNR (or SSIM/DSSIM) difference between methods.
 
     python3 bench/paired_bootstrap.py RESULTS.jsonl --baseline uniform [--method adaptive ...]
-                                      [--metric psnr] [--unit view|camera|dataset]
+                                      [--metric psnr] [--unit view|camera|dataset|seed]
                                       [--samples 10000] [--seed 6666] [--json OUT] [--markdown OUT]
     python3 bench/paired_bootstrap.py --eval-a UNIFORM.eval.json --eval-b ADAPTIVE.eval.json
 
@@ -18,6 +18,10 @@ Resampling unit:
   camera   whole test cameras are resampled (a cluster bootstrap: views of one camera are correlated);
   dataset  whole datasets (scenes) are resampled: pooled over every dataset of the file, as the
            paper's scene-level intervals (needs several datasets).
+  seed     whole stage-1 models are resampled: pooled over every seed of a (dataset, variant, budget),
+           each method paired with the baseline trained from the same seed's stage-1 model. The
+           difference between methods depends on the stage-1 model (BENCHMARKS.md, stage 2), so this is
+           the interval of "another training run"; with a handful of seeds it is coarse.
 The interval is the percentile interval of the bootstrap means (2.5%, 97.5%); `p_le_0` is the
 fraction of bootstrap means <= 0 (a one-sided bootstrap p-value for "method > baseline").
 """
@@ -51,7 +55,7 @@ def eval_views(ev):
             for v in ev.get("views", [])]
 
 
-def pairs(base_views, method_views, metric, dataset=""):
+def pairs(base_views, method_views, metric, dataset="", seed=None):
     """[(cluster keys, difference)] over the views both have with a finite metric."""
     k = METRICS[metric]
     base = {(v[0], v[1]): v[k] for v in base_views}
@@ -60,7 +64,8 @@ def pairs(base_views, method_views, metric, dataset=""):
         b = base.get((v[0], v[1]))
         m = v[k]
         if isinstance(b, (int, float)) and isinstance(m, (int, float)) and math.isfinite(b) and math.isfinite(m):
-            out.append(({"view": (dataset, v[0], v[1]), "camera": (dataset, v[0]), "dataset": dataset}, m - b))
+            out.append(({"view": (dataset, seed, v[0], v[1]), "camera": (dataset, seed, v[0]), "dataset": dataset,
+                         "seed": (dataset, seed)}, m - b))
         else:
             missing += 1
     return out, missing
@@ -98,15 +103,20 @@ def bootstrap(diffs, unit, samples, seed):
 def compare_rows(rows, baseline, methods, metric, unit, samples, seed):
     results = []
     ok_rows = [r for r in rows if r.get("views")]
+    any_seed = object()  # unit "seed": a group pools every seed
     if unit == "dataset":
         keys = sorted({(r.get("variant"), r.get("seed"), r.get("budget")) for r in ok_rows}, key=str)
         groups = [(None, k) for k in keys]
+    elif unit == "seed":
+        keys = sorted({(r.get("dataset"), r.get("variant"), r.get("budget")) for r in ok_rows}, key=str)
+        groups = [(k[0], (k[1], any_seed, k[2])) for k in keys]
     else:
         keys = sorted({(r.get("dataset"), r.get("variant"), r.get("seed"), r.get("budget")) for r in ok_rows}, key=str)
         groups = [(k[0], k[1:]) for k in keys]
     for dataset, (variant, seed_, budget) in groups:
         members = [r for r in ok_rows if (dataset is None or r.get("dataset") == dataset) and
-                   r.get("variant") == variant and r.get("seed") == seed_ and r.get("budget") == budget]
+                   r.get("variant") == variant and (seed_ is any_seed or r.get("seed") == seed_) and
+                   r.get("budget") == budget]
         by_method = {}
         for r in members:
             by_method.setdefault(r.get("method"), []).append(r)
@@ -119,16 +129,18 @@ def compare_rows(rows, baseline, methods, metric, unit, samples, seed):
             diffs, missing = [], 0
             for b in by_method[baseline]:
                 for r in by_method[m]:
-                    if r.get("dataset") != b.get("dataset"):
+                    if r.get("dataset") != b.get("dataset") or r.get("seed") != b.get("seed"):
                         continue
-                    d, miss = pairs(b["views"], r["views"], metric, r.get("dataset"))
+                    d, miss = pairs(b["views"], r["views"], metric, r.get("dataset"), r.get("seed"))
                     diffs += d
                     missing += miss
             if not diffs:
                 continue
             res = bootstrap(diffs, unit, samples, seed)
             statuses = sorted({r.get("status") for r in by_method[m] + by_method[baseline]})
-            results.append({"dataset": dataset if dataset is not None else "all", "variant": variant, "seed": seed_,
+            seeds = sorted({r.get("seed") for r in by_method[m]} & {b.get("seed") for b in by_method[baseline]}, key=str)
+            results.append({"dataset": dataset if dataset is not None else "all", "variant": variant,
+                            "seed": ",".join(str(x) for x in seeds),
                             "budget": budget, "method": m, "baseline": baseline, "metric": metric, "unit": unit,
                             "pairs": len(diffs), "unpaired": missing, "samples": samples,
                             "row_status": ",".join(str(s) for s in statuses), **res})
@@ -136,11 +148,11 @@ def compare_rows(rows, baseline, methods, metric, unit, samples, seed):
 
 
 def markdown(results):
-    lines = ["| dataset | variant | budget | method - baseline | metric | pairs | clusters (unit) | mean diff | "
-             "95% CI | P(<=0) |", "|---|---|---|---|---|---:|---:|---:|---|---:|"]
+    lines = ["| dataset | variant | seed | budget | method - baseline | metric | pairs | clusters (unit) | mean diff | "
+             "95% CI | P(<=0) |", "|---|---|---|---|---|---|---:|---:|---:|---|---:|"]
     for r in results:
-        lines.append("| %s | %s | %s | %s - %s | %s | %d | %d (%s) | %+.4f | [%+.4f, %+.4f] | %.4f |" % (
-            r["dataset"], r["variant"], r["budget"], r["method"], r["baseline"], r["metric"], r["pairs"],
+        lines.append("| %s | %s | %s | %s | %s - %s | %s | %d | %d (%s) | %+.4f | [%+.4f, %+.4f] | %.4f |" % (
+            r["dataset"], r["variant"], r["seed"], r["budget"], r["method"], r["baseline"], r["metric"], r["pairs"],
             r["clusters"], r["unit"], r["mean"], r["ci95"][0], r["ci95"][1], r["p_le_0"]))
     return "\n".join(lines) + "\n"
 
@@ -152,7 +164,7 @@ def main(argv=None):
     p.add_argument("--baseline", default="uniform", help="baseline method (default uniform)")
     p.add_argument("--method", action="append", default=[], help="method(s) to compare (default: all others)")
     p.add_argument("--metric", default="psnr", choices=sorted(METRICS))
-    p.add_argument("--unit", default="view", choices=["view", "camera", "dataset"])
+    p.add_argument("--unit", default="view", choices=["view", "camera", "dataset", "seed"])
     p.add_argument("--samples", type=int, default=10000)
     p.add_argument("--seed", type=int, default=6666, help="seed of the resampling (default 6666)")
     p.add_argument("--eval-a", help="baseline `atex eval --json` output (instead of RESULTS)")

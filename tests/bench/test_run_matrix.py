@@ -341,6 +341,24 @@ class Matrix(Base):
         self.assertEqual(rc, 0)
         self.assertIn("(camera)", stdout)
 
+    def test_paired_bootstrap_pools_seeds_pairing_each_with_its_own_baseline(self):
+        self.write_config(seeds=[6666, 7], budgets=["full"])
+        rc, _, stderr = self.matrix()
+        self.assertEqual(rc, 0, stderr)
+        out_json = os.path.join(self.dir, "ci.json")
+        rc, stdout, stderr = run(os.path.join(SOURCE, "bench", "paired_bootstrap.py"),
+                                 os.path.join(self.out, "results.jsonl"), "--baseline", "uniform", "--method",
+                                 "adaptive", "--unit", "seed", "--samples", "500", "--json", out_json)
+        self.assertEqual(rc, 0, stderr)
+        self.assertIn("(seed)", stdout)
+        with open(out_json) as f:
+            res = json.load(f)
+        self.assertEqual(len(res), 1)
+        self.assertEqual(res[0]["seed"], "6666,7")
+        self.assertEqual(res[0]["clusters"], 2)
+        self.assertEqual(res[0]["pairs"], 12)  # 6 views x 2 seeds; a pairing across seeds would give 24
+        self.assertAlmostEqual(res[0]["mean"], 0.2 + 0.03 * 2 / 6)
+
 
 def stage(cmd):
     return cmd["args"][cmd["args"].index("--stage") + 1]

@@ -127,6 +127,10 @@ TEST(TrainerLego, CpuStageTwoGrowsWithinTheBudget) {
     EXPECT_EQ(stage2->asset.stats->texture_demand.size(), n);
     EXPECT_TRUE(ValidateAsset(stage2->asset).ok());
     if (fraction == 1.0) adaptive_texels = h.texels;
+    // Growth at 10 and 20 of 30 steps: the report notes the late growth (NoteLateGrowth).
+    bool noted = false;
+    for (const auto& e : stage2->events) noted |= e.find("the last growth (step 20) leaves 10 of 30") != std::string::npos;
+    EXPECT_TRUE(noted);
     if (fraction == 0.5) EXPECT_GT(stage2->growths[1].rejected_budget + stage2->growths[0].rejected_budget, 0u);
   }
   EXPECT_LT(adaptive_texels, 16u * n) << "adaptive should use fewer texels than uniform 4x4";

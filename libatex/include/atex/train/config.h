@@ -113,6 +113,8 @@ struct Stage2Config {
   bool same_time_batches = false;  // as Stage1Config's; the paper's 8 workers draw random views
   double lambda_dssim = 0.2;
   TextureMode textures = TextureMode::kAdaptive;
+  // The paper's steps of its 5,000 (10 % and 20 %). Scale them with a shortened `iterations`:
+  // the trainer's report notes a last growth past half the schedule (BENCHMARKS.md, stage 2).
   std::vector<int> growth_steps{500, 1000};
   double growth_threshold = 2e-5;
   int time_bins = 8;
@@ -125,7 +127,8 @@ struct Stage2Config {
   // ones, like its texels. true [not in the paper]: they are then multiplied by a (m) and a² (v),
   // a = old texels / new texels, the share of the old texel's gradient that one new texel gets
   // when the gradient is spread evenly; otherwise the old v, kept for ~1/(1 − β2) = 1,000 steps,
-  // holds a grown texel's step at a fraction of the learning rate (BENCHMARKS.md, stage 2).
+  // may hold a grown texel's step at a fraction of the learning rate. Measured on Panoptic: no
+  // gain on held-out views (BENCHMARKS.md, stage 2, seventh run), so off.
   bool rescale_grown_moments = false;
   // [choice] the 4DGS parameters continue at stage 1's final learning rates.
 };
