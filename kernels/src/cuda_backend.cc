@@ -452,7 +452,8 @@ class CudaBackend final : public Backend {
     Param fresh;
     ATEX_RETURN_IF_ERROR(fresh.Resize(layout_.texel_count() * 4));
     const int m_power = resize.rescale_moments ? 1 : 0, v_power = resize.rescale_moments ? 2 : 0;
-    for (auto [src, dst, power] : {std::tuple{&texels_.value, &fresh.value, 0}, std::tuple{&texels_.m, &fresh.m, m_power},
+    for (auto [src, dst, power] : {std::tuple{&texels_.value, &fresh.value, 0},
+                                   std::tuple{&texels_.m, &fresh.m, m_power},
                                    std::tuple{&texels_.v, &fresh.v, v_power}}) {
       ATEX_RETURN_IF_ERROR(ResampleTexels(src->data(), old_layout.data(), old_offsets.data(), dst->data(),
                                           layout_device_.data(), offsets_.data(), static_cast<int>(count_), power,

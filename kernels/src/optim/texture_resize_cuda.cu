@@ -27,7 +27,9 @@ Status ResampleTexels(const float* src, const uint8_t* old_layout, const uint32_
                       const uint8_t* new_layout, const uint32_t* new_offsets, int n, int share_power,
                       cudaStream_t stream) {
   if (n == 0) return Status::Ok();
-  if (share_power < 0 || share_power > 2) return MakeError(StatusCode::kInternal, "ResampleTexels: share_power ", share_power);
+  if (share_power < 0 || share_power > 2) {
+    return MakeError(StatusCode::kInternal, "ResampleTexels: share_power ", share_power);
+  }
   ResampleKernel<<<(n + 127) / 128, 128, 0, stream>>>(src, old_layout, old_offsets, dst, new_layout, new_offsets, n,
                                                       share_power);
   ATEX_CUDA_CHECK_LAUNCH("ResampleKernel");

@@ -329,7 +329,8 @@ class CpuBackend final : public Backend {
     if (resize.rescale_moments) {
       const TexturePool& old = *state_.textures;
       for (size_t i = 0; i < grown.size(); ++i) {
-        const float share = detail::GrownMomentShare<float>(old.heights[i], old.widths[i], grown.heights[i], grown.widths[i]);
+        const float share =
+            detail::GrownMomentShare<float>(old.heights[i], old.widths[i], grown.heights[i], grown.widths[i]);
         for (size_t k = size_t(grown.offsets[i]) * 4; k < size_t(grown.offsets[i + 1]) * 4; ++k) {
           state_.m_texels[k] *= share;
           state_.v_texels[k] *= share * share;

@@ -129,7 +129,9 @@ TEST(TrainerLego, CpuStageTwoGrowsWithinTheBudget) {
     if (fraction == 1.0) adaptive_texels = h.texels;
     // Growth at 10 and 20 of 30 steps: the report notes the late growth (NoteLateGrowth).
     bool noted = false;
-    for (const auto& e : stage2->events) noted |= e.find("the last growth (step 20) leaves 10 of 30") != std::string::npos;
+    for (const auto& e : stage2->events) {
+      noted |= e.find("the last growth (step 20) leaves 10 of 30") != std::string::npos;
+    }
     EXPECT_TRUE(noted);
     if (fraction == 0.5) EXPECT_GT(stage2->growths[1].rejected_budget + stage2->growths[0].rejected_budget, 0u);
   }
@@ -242,7 +244,8 @@ TEST(TrainerLego, RescaledGrowthScalesTheInterpolatedMomentsByTheTexelShare) {
   ASSERT_TRUE(trainer_backend->Save(&state).ok());
   ASSERT_TRUE(state.textures.has_value());
   TextureResize interpolate{state.textures->heights, state.textures->widths};
-  for (size_t i = 0; i < interpolate.heights.size(); ++i) {  // every texture grows: 1 -> 2 or 4 rows, 2 -> 4 columns
+  // One growth at step 5 leaves every side at most 2, so every texture can grow again here.
+  for (size_t i = 0; i < interpolate.heights.size(); ++i) {
     interpolate.heights[i] = static_cast<uint8_t>(i % 3 == 0 ? 4 : std::min(4, interpolate.heights[i] * 2));
     interpolate.widths[i] = static_cast<uint8_t>(std::min(4, interpolate.widths[i] * 2));
   }
