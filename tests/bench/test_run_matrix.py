@@ -255,6 +255,37 @@ class Matrix(Base):
         self.assertEqual(rc, 2, stderr)
         self.assertIn("train_split", stderr)
 
+    def test_growth_probes_collect_and_compare_with_the_same_seeds_uniform_row(self):
+        self.write_config(budgets=["full"])
+        rc, _, stderr = self.matrix()
+        self.assertEqual(rc, 0, stderr)
+        uniform = self.rows()["scene/full/s6666/uniform/full"]
+        # A probe in the layout of bench/device/growth_probes.sh: every view 0.25 dB above uniform.
+        probe_dir = os.path.join(self.dir, "probe2")
+        os.makedirs(probe_dir)
+        views = [{"camera": v[0], "timestep": v[1], "psnr": v[2] + 0.25} for v in uniform["views"]]
+        files = {"train": {"seconds": {"textures": 1.0}, "test": {"mean": {"psnr": 0}, "views": views}},
+                 "eval": {"mean": {"psnr": uniform["psnr"] + 0.25}, "views": views},
+                 "evaltrain": {"mean": {"psnr": 30.0}, "views": views}}
+        for suffix, content in files.items():
+            with open(os.path.join(probe_dir, "s6666_early.%s.json" % suffix), "w") as f:
+                json.dump(content, f)
+        tool = os.path.join(SOURCE, "bench", "growth_probes.py")
+        probes = os.path.join(self.dir, "probes.json")
+        rc, _, stderr = run(tool, "collect", probe_dir, "--out", probes)
+        self.assertEqual(rc, 0, stderr)
+        with open(probes) as f:
+            collected = json.load(f)["runs"]["probe2/s6666_early"]
+        self.assertNotIn("views", collected["eval_train"])
+        self.assertNotIn("views", collected["train"]["test"])
+        self.assertEqual(len(collected["eval"]["views"]), len(views))
+        rc, stdout, stderr = run(tool, "summary", probes, "--rows", os.path.join(self.out, "results.jsonl"),
+                                 "--dataset", "scene", "--samples", "200")
+        self.assertEqual(rc, 0, stderr)
+        self.assertIn("| probe2/s6666_early |", stdout)
+        self.assertIn("| 30.000 |", stdout)
+        self.assertIn("+0.250 [+0.250, +0.250]", stdout)
+
     def test_failures_become_rows_and_retry_failed_reruns_them(self):
         rc, stdout, stderr = self.matrix(env={"FAKE_ATEX_FAIL": "--textures adaptive"})
         self.assertEqual(rc, 0, stderr)
@@ -483,8 +514,8 @@ class Gpus(Base):
         self.assertTrue(os.path.exists(os.path.join(self.dir, "atex_run_matrix_gpu0.lock")))
 
     def test_a_waiting_worker_leaves_its_gpu_to_another_process(self):
-        # Process A (--gpus 0,1): both cells need one stage-1 model, so its GPU-1 worker waits for it.
-        # Process B (--gpus 1, another config) must get GPU 1 meanwhile, not after A's stage 1.
+        # Process A (--gpus 0,1): both cells need one stage-1 model, so the worker that does not train it
+        # waits. Process B (another config) on that worker's GPU must get it meanwhile, not after A's stage 1.
         self.write_config(methods={"none": {"stage2": False}, "uniform": {"textures": "uniform"}},
                           budgets=["full"], fps={"sizes": ["native"], "repeats": 3})
         env = environment(self.matrix_env({"FAKE_ATEX_SLEEP": "--stage 1:6"}))
@@ -495,8 +526,12 @@ class Gpus(Base):
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline and not self.stage1_running("outA"):
             time.sleep(0.05)
-        b = subprocess.Popen([PY] + self.matrix_argv("--gpus", "1", out=os.path.join(self.dir, "outB")), env=env,
-                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        # Either of A's workers may take the stage-1 cell (a thread race): B goes to the other GPU.
+        a_gpu = [c["gpu"] for c in self.commands("train") if stage(c) == "1" and "outA" in " ".join(c["args"])]
+        self.assertEqual(len(a_gpu), 1)
+        waiting_gpu = "1" if a_gpu[0] == "0" else "0"
+        b = subprocess.Popen([PY] + self.matrix_argv("--gpus", waiting_gpu, out=os.path.join(self.dir, "outB")),
+                             env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         for p in (a, b):
             output = p.communicate(timeout=60)[0]
             self.assertEqual(p.returncode, 0, output)

@@ -187,11 +187,9 @@ TEST(TrainerLego, StageTwoWithoutTexturesFineTunesTheModel) {
   EXPECT_TRUE(ValidateAsset(stage2->asset).ok());
 }
 
-// Growth through the backend leaves the rendered image unchanged (corner-aligned resampling).
-TEST(TrainerLego, GrowthThroughTheBackendLeavesRendersUnchanged) {
-  ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
-  auto data = OpenLego(path);
-  ASSERT_NE(data, nullptr);
+// Both stages of a short SmallConfig on `backend`, with one texture growth at stage-2 step 5:
+// after it every texture side is at most 2, so every texture can grow again.
+Status TrainWithOneGrowth(const Dataset& data, Backend& backend) {
   TrainConfig config = SmallConfig();
   config.stage1.coarse_iterations = 30;
   config.stage1.fine_iterations = 10;
@@ -199,9 +197,17 @@ TEST(TrainerLego, GrowthThroughTheBackendLeavesRendersUnchanged) {
   config.stage2.growth_steps = {5};
   TrainerOptions options;
   options.config = config;
+  return Train(data, backend, options).status();
+}
+
+// Growth through the backend leaves the rendered image unchanged (corner-aligned resampling).
+TEST(TrainerLego, GrowthThroughTheBackendLeavesRendersUnchanged) {
+  ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  auto data = OpenLego(path);
+  ASSERT_NE(data, nullptr);
   auto backend = MakeCpuBackend();
-  auto trained = Train(*data, *backend, options);
-  ASSERT_TRUE(trained.ok()) << trained.status().ToString();
+  const Status trained = TrainWithOneGrowth(*data, *backend);
+  ASSERT_TRUE(trained.ok()) << trained.ToString();
   ModelState state;
   ASSERT_TRUE(backend->Save(&state).ok());
   RenderRequest request;
@@ -231,20 +237,13 @@ TEST(TrainerLego, RescaledGrowthScalesTheInterpolatedMomentsByTheTexelShare) {
   ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
   auto data = OpenLego(path);
   ASSERT_NE(data, nullptr);
-  TrainConfig config = SmallConfig();
-  config.stage1.coarse_iterations = 30;
-  config.stage1.fine_iterations = 10;
-  config.stage2.iterations = 10;
-  config.stage2.growth_steps = {5};
-  TrainerOptions options;
-  options.config = config;
   auto trainer_backend = MakeCpuBackend();
-  ASSERT_TRUE(Train(*data, *trainer_backend, options).ok());
+  const Status trained = TrainWithOneGrowth(*data, *trainer_backend);
+  ASSERT_TRUE(trained.ok()) << trained.ToString();
   ModelState state;
   ASSERT_TRUE(trainer_backend->Save(&state).ok());
   ASSERT_TRUE(state.textures.has_value());
   TextureResize interpolate{state.textures->heights, state.textures->widths};
-  // One growth at step 5 leaves every side at most 2, so every texture can grow again here.
   for (size_t i = 0; i < interpolate.heights.size(); ++i) {
     interpolate.heights[i] = static_cast<uint8_t>(i % 3 == 0 ? 4 : std::min(4, interpolate.heights[i] * 2));
     interpolate.widths[i] = static_cast<uint8_t>(std::min(4, interpolate.widths[i] * 2));
