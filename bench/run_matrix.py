@@ -56,6 +56,7 @@ Config (JSON; see bench/configs/*.json):
   budgets         ["full" | {"name": N, "budget_of": METHOD, "fraction": F}
                            | {"name": N, "budget_mib": MIB}
                            | {"name": N, "keep_count": F, "order_from": "stage1"}]   default ["full"]
+                  (a budget's "args": [...] go to its `atex fit` after fit.args, e.g. ["--levers", "prune"])
   fit             {"args": [...], "pass_data": true, "budget_unit": "bytes" | "mib"}   (pass_data: --data and
                   the dataset's --timesteps/--downscale/--dataset-kind; --backend is always passed)
   fps             {"sizes": ["native", "1352x1014"], "repeats": 100, "view": "test:0"}
@@ -204,6 +205,7 @@ def load_config(path):
             continue
         if not isinstance(b, dict) or not isinstance(b.get("name"), str):
             raise ConfigError("budget %r: needs a 'name'" % (b,))
+        b["args"] = as_list(b.get("args"), "budget %s args" % b["name"])
         if "keep_count" in b:
             b["kind"] = "keep_count"
             if not 0 < float(b["keep_count"]) <= 1:
@@ -583,7 +585,7 @@ class Matrix:
             d = self.cfg["datasets"][cell["dataset"]]
             argv += ["--data", expand_env(d["path"])] + \
                 option_values(d["args"], ("--timesteps", "--downscale", "--dataset-kind"))
-        argv += ["--backend", self.cfg["backend"]] + fit["args"] + ["--json"]
+        argv += ["--backend", self.cfg["backend"]] + fit["args"] + b["args"] + ["--json"]
         data, seconds = self.run.run("fit", argv, os.path.join(cell_dir, "fit.json"),
                                      os.path.join(cell_dir, "fit.log"))
         if isinstance(data, dict) and isinstance(data.get("moves"), list):  # keep rows small

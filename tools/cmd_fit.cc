@@ -32,6 +32,7 @@ struct FitArgs {
   std::string backend = "auto";
   bool keep_stats = false;
   uint64_t seed = 6666;
+  std::string levers = "default";
   bool json = false;
 };
 
@@ -115,6 +116,8 @@ int RunFit(const FitArgs& a) {
     return cli::kExitUsage;
   }
   const uint64_t budget = budgets.empty() ? 0 : *std::min_element(budgets.begin(), budgets.end());
+  auto levers = fit::ParseLevers(a.levers);
+  if (!levers.ok()) return cli::Fail(cmd, levers.status().WithContext("--levers"));
 
   // Wall seconds per phase, for the report: where a long fit spends its time.
   nlohmann::json phase_seconds = nlohmann::json::object();
@@ -201,6 +204,7 @@ int RunFit(const FitArgs& a) {
     o.write = start_write;
     o.seed = a.seed;
     o.floor_bytes = quality_mode ? 0 : target;
+    o.levers = *levers;
     o.progress = [&](const fit::FitProgress& p) {
       if (!a.json) std::cerr << "atex fit: move " << p.move << ": " << p.text << "\n";
     };
@@ -210,7 +214,7 @@ int RunFit(const FitArgs& a) {
         return e.mean.psnr >= a.quality;
       };
     } else {
-      ATEX_RETURN_IF_ERROR(fit::CheckBudget(start, start_write, target));
+      ATEX_RETURN_IF_ERROR(fit::CheckBudget(start, start_write, target, o.min_grid_resolution, o.levers));
     }
     ATEX_ASSIGN_OR_RETURN(fit::Plan plan, fit::BuildPlan(start, &renderer, o));
     shared_plan = plan;
@@ -313,6 +317,7 @@ int RunFit(const FitArgs& a) {
   if (!a.budget.empty()) report["budget_bytes"] = budget;
   if (a.quality > 0) report["quality_floor_psnr"] = a.quality;
   report["levers"] = LeverSummary(input, result.asset, result.write);
+  report["levers"]["allowed"] = fit::LeverSetNames(*levers);
   nlohmann::json moves = nlohmann::json::array();
   for (const fit::Move& m : result.moves) moves.push_back(fit::MoveToJson(m));
   report["moves"] = moves;
@@ -368,6 +373,11 @@ atex::cli::Runner SetupFit(CLI::App& app) {
   app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
   app.add_flag("--keep-stats", a->keep_stats, "Keep the per-Gaussian statistics (GSTA) for later fits");
   app.add_option("--seed", a->seed, "Breaks importance ties")->capture_default_str();
+  app.add_option("--levers", a->levers,
+                 "Levers the fit may use, comma-separated: prune, textures, sh, encoding, grid, all-textures; "
+                 "default = the first five. 'prune' alone, or 'prune,all-textures', is the paper's fixed-memory "
+                 "protocol: the model's own texture allocation and precision kept (docs/fit.md)")
+      ->capture_default_str();
   app.add_flag("--json", a->json, "Machine-readable report on stdout");
   return [a]() { return RunFit(*a); };
 }

@@ -69,7 +69,7 @@ class Base(unittest.TestCase):
             "stage1": {"args": ["--set", "stage1.fine_iterations=10"]},
             "methods": {"none": {"stage2": False}, "uniform": {"textures": "uniform"},
                         "adaptive": {"textures": "adaptive", "set": ["stage2.ablations.anisotropic=true"]}},
-            "budgets": ["full", {"name": "b50", "budget_of": "uniform", "fraction": 0.5},
+            "budgets": ["full", {"name": "b50", "budget_of": "uniform", "fraction": 0.5, "args": ["--levers", "prune"]},
                         {"name": "k50", "keep_count": 0.5}],
             "fps": {"sizes": ["native", "1352x1014"], "repeats": 3},
             "backend": "cpu",
@@ -221,7 +221,9 @@ class Matrix(Base):
                    or ("--budget" in c and m == "none" and c[1].endswith("stage1.atex"))]
             self.assertTrue(fit, m)
             self.assertEqual(fit[0][fit[0].index("--budget") + 1], "6000")
+            self.assertEqual(fit[0][fit[0].index("--levers") + 1], "prune", "the budget's own args")
         k50 = [c for c in self.calls("fit") if "--keep-count" in c]
+        self.assertFalse([c for c in k50 if "--levers" in c], "one budget's args stay with its cells")
         self.assertTrue(all(c[c.index("--order-from") + 1].endswith("stage1.atex") for c in k50))
         with open(os.path.join(self.out, "results.csv")) as f:
             table = list(csv.DictReader(f))

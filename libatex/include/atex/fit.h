@@ -1,12 +1,16 @@
 // Fitting an asset to a byte budget (`atex fit`; docs/fit.md explains the method).
 //
-// The fitter trims capacity with five levers and spends the budget where it
+// The fitter trims capacity with these levers and spends the budget where it
 // matters most:
-//   prune        remove the least important Gaussians (accumulated blending weight),
-//   textures     shrink textures one axis at a time, least damage per texel first,
-//   sh           lower the SH degree of every Gaussian,
-//   encoding     store an attribute stream with fewer bits (f32 → f16 / q16 → q8),
-//   grid         halve the spatial resolution of the deformation grids.
+//   prune         remove the least important Gaussians (accumulated blending weight),
+//   textures      shrink textures one axis at a time, least damage per texel first,
+//   sh            lower the SH degree of every Gaussian,
+//   encoding      store an attribute stream with fewer bits (f32 → f16 / q16 → q8),
+//   grid          halve the spatial resolution of the deformation grids,
+//   all-textures  halve the longer axis of every texture at once (not used unless
+//                 asked for: it never moves texels between Gaussians, so a uniform
+//                 pool stays uniform; the paper's fixed-memory protocol, docs/fit.md).
+// PlanOptions::levers chooses which ones a plan may use (the first five by default).
 // A plan is built greedily: at every step each lever proposes its next move, the
 // move is applied, the asset is encoded (exact file bytes) and decoded (exact
 // stored values) and rendered from a fixed set of probe views; the move with the
@@ -39,8 +43,20 @@
 
 namespace atex::fit {
 
-enum class Lever : int { kPrune = 0, kTextures = 1, kShDegree = 2, kEncoding = 3, kGrid = 4 };
+enum class Lever : int { kPrune = 0, kTextures = 1, kShDegree = 2, kEncoding = 3, kGrid = 4, kAllTextures = 5 };
 const char* LeverName(Lever lever);
+
+// A set of levers: bit (1 << Lever).
+using LeverSet = uint32_t;
+constexpr LeverSet LeverBit(Lever lever) { return LeverSet{1} << static_cast<int>(lever); }
+constexpr bool HasLever(LeverSet set, Lever lever) { return (set & LeverBit(lever)) != 0; }
+constexpr LeverSet kDefaultLevers = LeverBit(Lever::kPrune) | LeverBit(Lever::kTextures) |
+                                    LeverBit(Lever::kShDegree) | LeverBit(Lever::kEncoding) | LeverBit(Lever::kGrid);
+// "prune,all-textures" → the set; "default" → kDefaultLevers. kInvalidArgument names an
+// unknown lever (and lists the known ones) or an empty list.
+StatusOr<LeverSet> ParseLevers(const std::string& text);
+// The set's lever names, comma-separated, in Lever order.
+std::string LeverSetNames(LeverSet set);
 
 // The attribute streams whose encoding the fitter may change (WriteOptions fields).
 enum class Stream : int {
@@ -54,6 +70,7 @@ void SetEncoding(WriteOptions* options, Stream stream, ScalarEncoding encoding);
 struct Move {
   Lever lever = Lever::kPrune;
   uint64_t count = 0;                 // prune: Gaussians removed; textures: shrink operations (one axis halved each)
+                                      // (all-textures is one indivisible step: no count)
   Stream stream = Stream::kPositions;  // encoding: which stream
   ScalarEncoding encoding = ScalarEncoding::kFloat32;  // encoding: its new encoding
   // Measured after the move (cumulative): exact file bytes and probe distortion.
@@ -104,6 +121,7 @@ struct FitProgress {
 struct PlanOptions {
   WriteOptions write;              // codec, zstd level and the starting encodings
   uint64_t floor_bytes = 0;        // build moves until the asset is at most this big
+  LeverSet levers = kDefaultLevers;  // the levers whose moves are proposed
   double prune_fraction = 0.10;    // a prune move removes this fraction of the current Gaussians (at least 1)
   double texture_fraction = 0.10;  // a texture move removes about this fraction of the current texels
   uint64_t seed = 6666;            // breaks importance ties deterministically
@@ -151,11 +169,15 @@ std::vector<uint32_t> ImportanceOrder(const Asset& asset, uint64_t seed);
 // with `base`'s codec settings. Streams the file lacks keep `base`'s encoding.
 StatusOr<WriteOptions> EncodingsOfFile(const uint8_t* data, size_t size, const WriteOptions& base);
 
-// Smallest valid asset for `asset`'s structure: one Gaussian (the most important),
-// SH degree 0, 1×1 textures, every stream q8, grids at the minimum resolution.
-StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, int min_grid_resolution = 4);
-// kBudgetTooSmall, naming MinimumBytes, when `budget_bytes` is below it; OK otherwise.
-Status CheckBudget(const Asset& asset, const WriteOptions& write, uint64_t budget_bytes, int min_grid_resolution = 4);
+// Smallest valid asset that `levers` can reach from `asset`: one Gaussian (the most
+// important) with prune; SH degree 0 with sh; 1×1 textures with textures or
+// all-textures; every stream q8 with encoding (else `write`'s encodings); grids at the
+// minimum resolution with grid.
+StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, int min_grid_resolution = 4,
+                                LeverSet levers = kDefaultLevers);
+// kBudgetTooSmall, naming MinimumBytes and the levers, when `budget_bytes` is below it; OK otherwise.
+Status CheckBudget(const Asset& asset, const WriteOptions& write, uint64_t budget_bytes, int min_grid_resolution = 4,
+                   LeverSet levers = kDefaultLevers);
 
 // Builds the plan (see the file comment). `renderer` measures distortion.
 StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const PlanOptions& options);

@@ -1,4 +1,5 @@
 // The budget fitter: texture shrinking, the levers, plans and budgets.
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -84,6 +85,53 @@ TEST(TextureShrink, UniformAssetsBecomeAdaptive) {
   ASSERT_TRUE(ShrinkTextures(&a, 5).ok());
   EXPECT_EQ(a.metadata.texture_mode, "adaptive");
   EXPECT_TRUE(ValidateAsset(a).ok()) << ValidateAsset(a).ToString();
+}
+
+TEST(TextureShrink, HalvingAllTexturesKeepsAUniformPoolUniform) {
+  Asset a = SmallAsset(container::SyntheticTextures::kUniform);
+  a.metadata.texture_mode = "uniform";
+  ASSERT_TRUE(ValidateAsset(a).ok());
+  const int side = a.textures->heights[0];
+  ASSERT_EQ(side, 4);
+  // 4x4 → 2x4 → 2x2 → 1x2 → 1x1: the longer axis (the height on a tie), every texture alike.
+  const std::vector<std::pair<int, int>> sizes = {{2, 4}, {2, 2}, {1, 2}, {1, 1}};
+  for (const auto& [h, w] : sizes) {
+    ASSERT_TRUE(HalveAllTextures(&a).ok());
+    for (size_t i = 0; i < a.textures->size(); ++i) {
+      ASSERT_EQ(a.textures->heights[i], h);
+      ASSERT_EQ(a.textures->widths[i], w);
+    }
+    EXPECT_EQ(a.metadata.texture_mode, "uniform");
+    EXPECT_TRUE(ValidateAsset(a).ok()) << ValidateAsset(a).ToString();
+  }
+  EXPECT_EQ(HalveAllTextures(&a).code(), StatusCode::kInvalidArgument) << "nothing left to halve";
+}
+
+TEST(TextureShrink, HalvingAllTexturesProjectsEachTextureAsShrinkTextureDoes) {
+  Asset a = SmallAsset(container::SyntheticTextures::kMixed, 9);
+  const TexturePool before = *a.textures;
+  ASSERT_TRUE(HalveAllTextures(&a).ok());
+  const TexturePool& after = *a.textures;
+  size_t halved = 0;
+  for (size_t i = 0; i < before.size(); ++i) {
+    const int h = before.heights[i], w = before.widths[i];
+    const int nh = after.heights[i], nw = after.widths[i];
+    const float* src = before.texels.data() + before.offsets[i] * kTexelChannels;
+    const float* dst = after.texels.data() + after.offsets[i] * kTexelChannels;
+    if (h == 1 && w == 1) {
+      ASSERT_EQ(nh * nw, 1);
+      for (int c = 0; c < kTexelChannels; ++c) ASSERT_EQ(dst[c], src[c]);
+      continue;
+    }
+    ++halved;
+    ASSERT_EQ(nh * nw * 2, h * w) << "texture " << i << " loses exactly one axis halving";
+    ASSERT_EQ(nh < h, h >= w) << "texture " << i << " halves its longer axis";
+    std::vector<float> expected(static_cast<size_t>(nh) * nw * kTexelChannels);
+    ShrinkTexture(src, h, w, expected.data(), nh, nw);
+    for (size_t k = 0; k < expected.size(); ++k) ASSERT_EQ(dst[k], expected[k]) << "texture " << i;
+  }
+  EXPECT_GT(halved, before.size() / 4);
+  EXPECT_TRUE(ValidateAsset(a).ok());
 }
 
 TEST(Levers, ShDegreeAndGridKeepAssetsValid) {
@@ -411,6 +459,80 @@ TEST(Plan, BudgetBelowTheMinimumIsNamed) {
   EXPECT_EQ(below.code(), StatusCode::kBudgetTooSmall);
   EXPECT_NE(below.message().find(std::to_string(*minimum)), std::string::npos) << below.ToString();
   EXPECT_TRUE(CheckBudget(a, w, *minimum).ok());
+}
+
+TEST(Levers, ParsedByNameAndRefusedWhenUnknown) {
+  EXPECT_EQ(*ParseLevers("default"), kDefaultLevers);
+  EXPECT_EQ(*ParseLevers("prune"), LeverBit(Lever::kPrune));
+  EXPECT_EQ(*ParseLevers("prune,all-textures"), LeverBit(Lever::kPrune) | LeverBit(Lever::kAllTextures));
+  EXPECT_EQ(LeverSetNames(kDefaultLevers), "prune,textures,sh,encoding,grid");
+  EXPECT_EQ(*ParseLevers(LeverSetNames(kDefaultLevers)), kDefaultLevers);
+  const auto unknown = ParseLevers("prune,quantise");
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.status().message().find("'quantise'"), std::string::npos) << unknown.status().ToString();
+  EXPECT_NE(unknown.status().message().find("all-textures"), std::string::npos) << "lists the known levers";
+  EXPECT_FALSE(ParseLevers("").ok());
+  EXPECT_FALSE(ParseLevers(",").ok());
+}
+
+// The paper's fixed-memory protocol (docs/fit.md): only the Gaussian count and whole-pool
+// texture scale may change, never the precision, the SH degree, the grids or the
+// allocation of texels between Gaussians.
+TEST(Plan, RestrictedLeversKeepEverythingElse) {
+  Asset a = SmallAsset(container::SyntheticTextures::kUniform, 17);
+  a.metadata.texture_mode = "uniform";
+  WriteOptions w;
+  w.write_stats = false;
+  auto backend = train::MakeCpuBackend();
+  ProbeRenderer renderer(backend.get(), OrbitProbes(a, 3, 32, 24));
+  for (const LeverSet levers : {LeverBit(Lever::kPrune), LeverBit(Lever::kPrune) | LeverBit(Lever::kAllTextures)}) {
+    SCOPED_TRACE(LeverSetNames(levers));
+    auto minimum = MinimumBytes(a, w, 4, levers);
+    ASSERT_TRUE(minimum.ok());
+    EXPECT_GT(*minimum, *MinimumBytes(a, w)) << "fewer levers reach less far";
+    const Status below = CheckBudget(a, w, *minimum - 1, 4, levers);
+    EXPECT_EQ(below.code(), StatusCode::kBudgetTooSmall);
+    EXPECT_NE(below.message().find(std::to_string(*minimum)), std::string::npos) << below.ToString();
+    EXPECT_NE(below.message().find(LeverSetNames(levers)), std::string::npos) << below.ToString();
+    auto full = EncodeAsset(a, w);
+    ASSERT_TRUE(full.ok());
+    PlanOptions o;
+    o.write = w;
+    o.levers = levers;
+    o.prune_fraction = 0.2;
+    o.floor_bytes = full->size() / 3;
+    auto plan = BuildPlan(a, &renderer, o);
+    ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+    ASSERT_FALSE(plan->moves.empty());
+    std::set<Lever> used;
+    for (const Move& m : plan->moves) {
+      EXPECT_TRUE(HasLever(levers, m.lever)) << DescribeMove(m);
+      used.insert(m.lever);
+    }
+    EXPECT_EQ(used.size(), static_cast<size_t>(std::popcount(levers))) << "every allowed lever is used";
+    auto fitted = ApplyPlan(a, *plan, w, full->size() / 3);
+    ASSERT_TRUE(fitted.ok()) << fitted.status().ToString();
+    EXPECT_LE(fitted->bytes.size(), full->size() / 3);
+    const Asset& out = fitted->asset;
+    EXPECT_LT(out.gaussians.size(), a.gaussians.size());
+    EXPECT_EQ(out.gaussians.sh_degree, a.gaussians.sh_degree);
+    EXPECT_EQ(out.deformation->config.grid.base_resolution, a.deformation->config.grid.base_resolution);
+    for (int s = 0; s < static_cast<int>(Stream::kCount); ++s) {
+      EXPECT_EQ(GetEncoding(fitted->write, static_cast<Stream>(s)), GetEncoding(w, static_cast<Stream>(s)));
+    }
+    EXPECT_EQ(out.metadata.texture_mode, "uniform");
+    for (size_t i = 1; i < out.textures->size(); ++i) {
+      ASSERT_EQ(out.textures->heights[i], out.textures->heights[0]);
+      ASSERT_EQ(out.textures->widths[i], out.textures->widths[0]);
+    }
+    if (levers == LeverBit(Lever::kPrune)) {
+      EXPECT_EQ(out.textures->heights[0] * out.textures->widths[0], 16);
+    }
+    EXPECT_TRUE(ValidateAsset(out).ok());
+  }
+  PlanOptions none;
+  none.levers = 0;
+  EXPECT_EQ(BuildPlan(a, &renderer, none).status().code(), StatusCode::kInvalidArgument);
 }
 
 TEST(KeepCount, SubsetsAreIdenticalAcrossTextureModes) {

@@ -14,7 +14,7 @@ namespace atex::fit {
 Asset SubsetGaussians(const Asset& asset, const std::vector<uint8_t>& keep);
 
 // SH degree d → d − 1 (coefficients of band d dropped; the deformation field's SH
-// head, when on, loses the matching outputs). kFailedPrecondition at degree 0.
+// head, when on, loses the matching outputs). kInvalidArgument at degree 0.
 Status LowerShDegree(Asset* asset);
 
 // Spatial grid resolution r → max(min_resolution, ceil(r / 2)) on every scale,

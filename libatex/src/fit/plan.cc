@@ -22,8 +22,48 @@ const char* LeverName(Lever lever) {
     case Lever::kShDegree: return "sh";
     case Lever::kEncoding: return "encoding";
     case Lever::kGrid: return "grid";
+    case Lever::kAllTextures: return "all-textures";
   }
   return "unknown";
+}
+
+namespace {
+constexpr Lever kLevers[] = {Lever::kPrune, Lever::kTextures, Lever::kShDegree,
+                             Lever::kEncoding, Lever::kGrid, Lever::kAllTextures};
+}  // namespace
+
+StatusOr<LeverSet> ParseLevers(const std::string& text) {
+  if (text == "default") return kDefaultLevers;
+  LeverSet set = 0;
+  for (size_t start = 0; start <= text.size();) {
+    const size_t comma = std::min(text.find(',', start), text.size());
+    const std::string name = text.substr(start, comma - start);
+    start = comma + 1;
+    if (name.empty()) continue;
+    bool known = false;
+    for (Lever lever : kLevers) {
+      if (name == LeverName(lever)) {
+        set |= LeverBit(lever);
+        known = true;
+      }
+    }
+    if (!known) {
+      return MakeError(StatusCode::kInvalidArgument, "unknown lever '", name, "' (known: ",
+                       LeverSetNames(~LeverSet{0}), ", or default)");
+    }
+  }
+  if (set == 0) return MakeError(StatusCode::kInvalidArgument, "no lever named in '", text, "'");
+  return set;
+}
+
+std::string LeverSetNames(LeverSet set) {
+  std::string names;
+  for (Lever lever : kLevers) {
+    if (!HasLever(set, lever)) continue;
+    if (!names.empty()) names += ",";
+    names += LeverName(lever);
+  }
+  return names;
 }
 
 const char* StreamName(Stream stream) {
@@ -71,6 +111,7 @@ std::string DescribeMove(const Move& m) {
     case Lever::kShDegree: return "lower the SH degree by one";
     case Lever::kEncoding: return StrCat("store ", StreamName(m.stream), " as ", ScalarEncodingName(m.encoding));
     case Lever::kGrid: return "halve the deformation grid resolution";
+    case Lever::kAllTextures: return "halve the longer axis of every texture";
   }
   return "unknown move";
 }
@@ -166,6 +207,8 @@ Status ApplyMove(const Move& move, const std::vector<uint32_t>& prune_order, Ass
       return Status::Ok();
     case Lever::kGrid:
       return CoarsenGrid(asset, min_grid_resolution);
+    case Lever::kAllTextures:
+      return HalveAllTextures(asset);
   }
   return MakeError(StatusCode::kInternal, "fit: unknown lever");
 }
@@ -196,28 +239,41 @@ StatusOr<Asset> KeepMostImportant(const Asset& asset, const std::vector<uint32_t
   return SubsetGaussians(asset, keep);
 }
 
-StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, int min_grid_resolution) {
-  if (asset.gaussians.size() == 0) {
-    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(asset, write));
-    return static_cast<uint64_t>(bytes.size());
+StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, int min_grid_resolution,
+                                LeverSet levers) {
+  Asset smallest = asset;
+  if (HasLever(levers, Lever::kPrune) && asset.gaussians.size() > 1) {
+    const std::vector<uint32_t> order = ImportanceOrder(asset, 0);
+    ATEX_ASSIGN_OR_RETURN(smallest, KeepMostImportant(asset, order, 1.0 / static_cast<double>(asset.gaussians.size())));
   }
-  const std::vector<uint32_t> order = ImportanceOrder(asset, 0);
-  ATEX_ASSIGN_OR_RETURN(Asset smallest, KeepMostImportant(asset, order, 1.0 / static_cast<double>(asset.gaussians.size())));
-  while (smallest.gaussians.sh_degree > 0) ATEX_RETURN_IF_ERROR(LowerShDegree(&smallest));
-  ATEX_RETURN_IF_ERROR(ShrinkTextures(&smallest, std::numeric_limits<uint64_t>::max()).status());
-  while (CanCoarsenGrid(smallest, min_grid_resolution)) ATEX_RETURN_IF_ERROR(CoarsenGrid(&smallest, min_grid_resolution));
+  if (HasLever(levers, Lever::kShDegree)) {
+    while (smallest.gaussians.sh_degree > 0) ATEX_RETURN_IF_ERROR(LowerShDegree(&smallest));
+  }
+  if (HasLever(levers, Lever::kTextures)) {
+    ATEX_RETURN_IF_ERROR(ShrinkTextures(&smallest, std::numeric_limits<uint64_t>::max()).status());
+  } else if (HasLever(levers, Lever::kAllTextures)) {  // the same 1×1 pool, its texture_mode kept
+    while (smallest.textures && ShrinkableTexels(*smallest.textures) > 0) ATEX_RETURN_IF_ERROR(HalveAllTextures(&smallest));
+  }
+  if (HasLever(levers, Lever::kGrid)) {
+    while (CanCoarsenGrid(smallest, min_grid_resolution)) ATEX_RETURN_IF_ERROR(CoarsenGrid(&smallest, min_grid_resolution));
+  }
   WriteOptions w = write;
-  for (int s = 0; s < static_cast<int>(Stream::kCount); ++s) SetEncoding(&w, static_cast<Stream>(s), ScalarEncoding::kQuant8);
+  if (HasLever(levers, Lever::kEncoding)) {
+    for (int s = 0; s < static_cast<int>(Stream::kCount); ++s) SetEncoding(&w, static_cast<Stream>(s), ScalarEncoding::kQuant8);
+  }
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(smallest, w));
   return static_cast<uint64_t>(bytes.size());
 }
 
-Status CheckBudget(const Asset& asset, const WriteOptions& write, uint64_t budget_bytes, int min_grid_resolution) {
-  ATEX_ASSIGN_OR_RETURN(uint64_t minimum, MinimumBytes(asset, write, min_grid_resolution));
+Status CheckBudget(const Asset& asset, const WriteOptions& write, uint64_t budget_bytes, int min_grid_resolution,
+                   LeverSet levers) {
+  ATEX_ASSIGN_OR_RETURN(uint64_t minimum, MinimumBytes(asset, write, min_grid_resolution, levers));
   if (budget_bytes < minimum) {
     return MakeError(StatusCode::kBudgetTooSmall, "budget of ", budget_bytes,
-                     " bytes is below the smallest valid asset for this input, ", minimum,
-                     " bytes (one Gaussian, SH degree 0, 1x1 textures, every stream q8)");
+                     " bytes is below the smallest valid asset that the levers ", LeverSetNames(levers),
+                     " can reach from this input, ", minimum,
+                     " bytes (prune: one Gaussian; sh: degree 0; textures: 1x1; encoding: every stream q8;"
+                     " grid: minimum resolution)");
   }
   return Status::Ok();
 }
@@ -274,13 +330,19 @@ std::vector<Move> Proposals(const State& state, const PlanOptions& o) {
   std::vector<Move> moves;
   const Asset& a = state.asset;
   const size_t n = a.gaussians.size();
-  if (n > 1) {
+  const auto allowed = [&](Lever lever) { return HasLever(o.levers, lever); };
+  if (allowed(Lever::kPrune) && n > 1) {
     Move m;
     m.lever = Lever::kPrune;
     m.count = std::clamp<uint64_t>(static_cast<uint64_t>(o.prune_fraction * n), 1, n - 1);
     moves.push_back(m);
   }
-  if (a.textures && ShrinkableTexels(*a.textures) > 0) {
+  if (allowed(Lever::kAllTextures) && a.textures && ShrinkableTexels(*a.textures) > 0) {
+    Move m;
+    m.lever = Lever::kAllTextures;
+    moves.push_back(m);
+  }
+  if (allowed(Lever::kTextures) && a.textures && ShrinkableTexels(*a.textures) > 0) {
     uint64_t growable = 0;
     for (size_t i = 0; i < a.textures->size(); ++i) growable += a.textures->heights[i] * a.textures->widths[i] > 1;
     Move m;
@@ -288,12 +350,12 @@ std::vector<Move> Proposals(const State& state, const PlanOptions& o) {
     m.count = std::max<uint64_t>(1, static_cast<uint64_t>(o.texture_fraction * static_cast<double>(growable)));
     moves.push_back(m);
   }
-  if (a.gaussians.sh_degree > 0) {
+  if (allowed(Lever::kShDegree) && a.gaussians.sh_degree > 0) {
     Move m;
     m.lever = Lever::kShDegree;
     moves.push_back(m);
   }
-  for (int s = 0; s < static_cast<int>(Stream::kCount); ++s) {
+  for (int s = 0; allowed(Lever::kEncoding) && s < static_cast<int>(Stream::kCount); ++s) {
     const auto stream = static_cast<Stream>(s);
     if (stream == Stream::kShRest && a.gaussians.sh_degree == 0) continue;
     if (stream == Stream::kTexels && !a.textures) continue;
@@ -310,7 +372,7 @@ std::vector<Move> Proposals(const State& state, const PlanOptions& o) {
       moves.push_back(m);
     }
   }
-  if (CanCoarsenGrid(a, o.min_grid_resolution)) {
+  if (allowed(Lever::kGrid) && CanCoarsenGrid(a, o.min_grid_resolution)) {
     Move m;
     m.lever = Lever::kGrid;
     moves.push_back(m);
@@ -331,6 +393,9 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   if (!(options.prune_fraction > 0 && options.prune_fraction < 1) ||
       !(options.texture_fraction > 0 && options.texture_fraction <= 1)) {
     return MakeError(StatusCode::kInvalidArgument, "fit: step fractions must be in (0, 1)");
+  }
+  if ((options.levers & ~kDefaultLevers & ~LeverBit(Lever::kAllTextures)) != 0 || options.levers == 0) {
+    return MakeError(StatusCode::kInvalidArgument, "fit: the lever set ", options.levers, " names no lever or an unknown one");
   }
   ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
   Plan plan;

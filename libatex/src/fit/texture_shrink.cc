@@ -241,4 +241,42 @@ StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count) {
   return done;
 }
 
+Status HalveAllTextures(Asset* asset) {
+  if (!asset->textures || ShrinkableTexels(*asset->textures) == 0) {
+    return MakeError(StatusCode::kInvalidArgument, "every texture is already 1x1");
+  }
+  const TexturePool& pool = *asset->textures;
+  const size_t n = pool.size();
+  TexturePool out;
+  out.heights = pool.heights;
+  out.widths = pool.widths;
+  out.axis_u = pool.axis_u;
+  out.axis_v = pool.axis_v;
+  for (size_t i = 0; i < n; ++i) {
+    uint8_t& h = out.heights[i];
+    uint8_t& w = out.widths[i];
+    if (h >= w && h > 1) {
+      h = static_cast<uint8_t>(h / 2);
+    } else if (w > 1) {
+      w = static_cast<uint8_t>(w / 2);
+    }
+  }
+  out.RebuildOffsets();
+  out.texels.resize(out.texel_count() * kTexelChannels);
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static) if (n > 4096)
+#endif
+  for (int64_t i = 0; i < static_cast<int64_t>(n); ++i) {
+    const float* src = pool.texels.data() + pool.offsets[i] * kTexelChannels;
+    float* dst = out.texels.data() + out.offsets[i] * kTexelChannels;
+    if (out.heights[i] == pool.heights[i] && out.widths[i] == pool.widths[i]) {
+      std::copy(src, src + static_cast<size_t>(pool.heights[i]) * pool.widths[i] * kTexelChannels, dst);
+    } else {
+      ShrinkTexture(src, pool.heights[i], pool.widths[i], dst, out.heights[i], out.widths[i]);
+    }
+  }
+  asset->textures = std::move(out);
+  return Status::Ok();
+}
+
 }  // namespace atex::fit

@@ -30,6 +30,13 @@ double ShrinkResidual(const float* src /* [h][w][4] */, int height, int width, i
 // texture is 1×1. Returns the number of operations done.
 StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count);
 
+// Halves the longer axis of every texture larger than 1×1 at once (the height when
+// both sides are equal), by the same least-squares projection: capacity scaled down
+// without moving it between Gaussians, so a uniform pool stays uniform (and keeps its
+// texture_mode) and an adaptive pool keeps its shape of allocation.
+// kInvalidArgument when every texture is already 1×1 or the asset has none.
+Status HalveAllTextures(Asset* asset);
+
 // Texels that ShrinkTextures could still remove (all textures down to 1×1).
 uint64_t ShrinkableTexels(const TexturePool& pool);
 
