@@ -2,7 +2,8 @@
 """PNG charts from bench/run_matrix.py results (results.csv).
 
     /usr/bin/python3 bench/charts.py RESULTS.csv [MORE.csv ...] [--out docs/charts] [--prefix NAME_]
-                                     [--variant full] [--seed N] [--title TEXT]
+                                     [--variant full] [--seed N | --mean-seeds] [--budgets REGEX]
+                                     [--charts size,fps,time,histogram] [--title TEXT]
 
 Needs matplotlib (Debian python3-matplotlib, i.e. /usr/bin/python3); exits with status 3 and a
 message when it is missing. Rows whose status is not "ok" are left out (and counted on stderr).
@@ -16,14 +17,19 @@ Writes, one panel per dataset where it applies:
   <prefix>texel_histogram.png      texel-size histogram (h x w) per scene for the textured methods
                                    at their full budget, with texel bytes per Gaussian vs uniform 4x4
 Only rows of --variant (default "full") are drawn when that variant is present, and with --seed
-only that seed's rows (a matrix of several seeds would otherwise join them in one line).
+only that seed's rows (a matrix of several seeds would otherwise join them in one line). With
+--mean-seeds each (dataset, method, budget) becomes one point, PSNR and MiB averaged over the seeds,
+kept only where every seed of the file has that cell. --budgets draws only the budgets whose name
+matches the regular expression (one protocol per chart); --charts writes only the named charts.
 """
 
 import argparse
 import csv
 import math
 import os
+import re
 import sys
+import textwrap
 
 HIST_KEYS = ["%dx%d" % (h, w) for h in (1, 2, 4) for w in (1, 2, 4)]
 METHOD_ORDER = ["none", "uniform", "adaptive", "no-temporal-peak", "no-anisotropic", "no-visibility-normalization"]
@@ -48,6 +54,26 @@ def read_rows(paths):
                     continue
                 rows.append(r)
     return rows, skipped
+
+
+def mean_over_seeds(rows):
+    """One row per (dataset, variant, method, budget) that every seed of `rows` has: the first
+    seed's row with psnr and model_mib replaced by their means."""
+    seeds = {r.get("seed") for r in rows}
+    groups = {}
+    for r in rows:
+        groups.setdefault((r["dataset"], r.get("variant"), r["method"], r.get("budget")), []).append(r)
+    out = []
+    for group in groups.values():
+        if {r.get("seed") for r in group} != seeds:
+            continue
+        row = dict(group[0])
+        for key in ("psnr", "model_mib"):
+            values = [number(r.get(key)) for r in group]
+            row[key] = "" if None in values else repr(sum(values) / len(values))
+        row["seed"] = "mean of %d" % len(seeds)
+        out.append(row)
+    return out
 
 
 def method_sort_key(m):
@@ -82,7 +108,9 @@ class Charts:
         self.written = []
 
     def save(self, fig, name, suptitle):
-        fig.suptitle(suptitle + (" - " + self.title if self.title else ""), fontsize=11)
+        # Wrapped: a single panel is narrower than a long title.
+        width = max(40, int(fig.get_figwidth() * 11))
+        fig.suptitle(textwrap.fill(suptitle + (" - " + self.title if self.title else ""), width), fontsize=11)
         fig.tight_layout()
         path = os.path.join(self.out, self.prefix + name)
         fig.savefig(path, dpi=110)
@@ -208,8 +236,21 @@ def main(argv=None):
     p.add_argument("--prefix", default="", help="file name prefix, e.g. panoptic_")
     p.add_argument("--variant", default="full", help="draw only this variant when present (default full)")
     p.add_argument("--seed", default="", help="draw only this seed's rows (default: every seed)")
+    p.add_argument("--mean-seeds", action="store_true",
+                   help="average PSNR and MiB over the seeds (cells every seed has)")
+    p.add_argument("--budgets", default="", help="draw only budgets whose name matches this regex")
+    p.add_argument("--charts", default="size,fps,time,histogram",
+                   help="which charts, comma-separated (default: size,fps,time,histogram)")
     p.add_argument("--title", default="", help="appended to every chart title")
     args = p.parse_args(argv)
+    chosen = [c for c in args.charts.split(",") if c]
+    unknown = [c for c in chosen if c not in ("size", "fps", "time", "histogram")]
+    if unknown or not chosen:
+        print("charts: --charts takes size, fps, time, histogram (got %r)" % args.charts, file=sys.stderr)
+        return 2
+    if args.seed and args.mean_seeds:
+        print("charts: --seed and --mean-seeds are alternatives", file=sys.stderr)
+        return 2
     try:
         import matplotlib
         matplotlib.use("Agg")
@@ -230,14 +271,26 @@ def main(argv=None):
         if not rows:
             print("charts: no drawable rows of seed %s" % args.seed, file=sys.stderr)
             return 2
+    if args.budgets:
+        try:
+            pattern = re.compile(args.budgets)
+        except re.error as e:
+            print("charts: --budgets: %s" % e, file=sys.stderr)
+            return 2
+        rows = [r for r in rows if pattern.search(r.get("budget", ""))]
+    if args.mean_seeds:
+        rows = mean_over_seeds(rows)
+    if (args.budgets or args.mean_seeds) and not rows:
+        print("charts: no drawable rows left (--budgets / --mean-seeds)", file=sys.stderr)
+        return 2
     if skipped:
         print("charts: %d row(s) left out (failed or without PSNR)" % skipped, file=sys.stderr)
     os.makedirs(args.out, exist_ok=True)
     charts = Charts(plt, rows, args.out, args.prefix, args.title)
-    charts.psnr_vs_size()
-    charts.psnr_vs_fps()
-    charts.psnr_vs_time()
-    charts.texel_histogram()
+    for name, draw in (("size", charts.psnr_vs_size), ("fps", charts.psnr_vs_fps), ("time", charts.psnr_vs_time),
+                       ("histogram", charts.texel_histogram)):
+        if name in chosen:
+            draw()
     for path in charts.written:
         print(path)
     return 0

@@ -317,7 +317,9 @@ int RunFit(const FitArgs& a) {
   if (!a.budget.empty()) report["budget_bytes"] = budget;
   if (a.quality > 0) report["quality_floor_psnr"] = a.quality;
   report["levers"] = LeverSummary(input, result.asset, result.write);
-  report["levers"]["allowed"] = fit::LeverSetNames(*levers);
+  if (!a.budget.empty() || a.quality > 0) {  // a plan was built
+    report["levers"]["allowed"] = fit::LeverSetNames(*levers);
+  }
   nlohmann::json moves = nlohmann::json::array();
   for (const fit::Move& m : result.moves) moves.push_back(fit::MoveToJson(m));
   report["moves"] = moves;

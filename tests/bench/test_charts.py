@@ -8,6 +8,7 @@ Exit status 77 (CTest SKIP_RETURN_CODE) when this interpreter has no matplotlib.
 import argparse
 import csv
 import os
+import shutil
 import struct
 import subprocess
 import sys
@@ -47,6 +48,37 @@ def check_png(path):
     return size
 
 
+def check_selection(args):
+    """--budgets, --charts and --mean-seeds: what they keep, and their usage errors. Returns failures."""
+    failures = 0
+    sys.path.insert(0, os.path.dirname(os.path.abspath(args.charts)))
+    import charts  # noqa: E402 (the module under test, from the path given)
+    rows = [{"dataset": "d", "variant": "full", "method": "uniform", "budget": b, "seed": s, "psnr": str(p),
+             "model_mib": str(m)}
+            for b, s, p, m in (("b25", "1", 20.0, 10.0), ("b25", "2", 22.0, 12.0), ("b50", "1", 23.0, 20.0))]
+    mean = charts.mean_over_seeds(rows)
+    if [(r["budget"], float(r["psnr"]), float(r["model_mib"])) for r in mean] != [("b25", 21.0, 11.0)]:
+        print("FAIL: mean_over_seeds kept %s (expected b25 only, the cell both seeds have, at 21 dB, 11 MiB)"
+              % [(r["budget"], r["psnr"], r["model_mib"]) for r in mean])
+        failures += 1
+    folder = os.path.join(args.out, "selection")
+    shutil.rmtree(folder, ignore_errors=True)
+    picked = subprocess.run([sys.executable, args.charts, args.csv, "--out", folder, "--budgets", "^(full|b25)$",
+                             "--charts", "size", "--mean-seeds"], capture_output=True, text=True)
+    written = sorted(os.listdir(folder)) if os.path.isdir(folder) else []
+    if picked.returncode != 0 or written != [EXPECTED[0]]:
+        print("FAIL: --charts size wrote %s (exit %d: %s)" % (written, picked.returncode, picked.stderr))
+        failures += 1
+    for bad in (["--charts", "sizes"], ["--budgets", "("], ["--budgets", "^nothing$"],
+                ["--seed", "6666", "--mean-seeds"]):
+        proc = subprocess.run([sys.executable, args.charts, args.csv, "--out", folder] + bad,
+                              capture_output=True, text=True)
+        if proc.returncode != 2 or not proc.stderr.startswith("charts:"):
+            print("FAIL: %s exited with %d: %s" % (" ".join(bad), proc.returncode, proc.stderr))
+            failures += 1
+    return failures
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--csv", default=os.path.join(SOURCE, "bench", "testdata", "example_results.csv"))
@@ -84,6 +116,7 @@ def main():
     if one_seed.returncode != 0 or not os.path.exists(os.path.join(args.out, "one_seed", EXPECTED[0])):
         print("FAIL: --seed %s exited with %d: %s" % (seed, one_seed.returncode, one_seed.stderr))
         failures += 1
+    failures += check_selection(args)
     for name in EXPECTED:
         path = os.path.join(args.out, name)
         try:

@@ -288,6 +288,47 @@ class Matrix(Base):
         self.assertIn("| 30.000 |", stdout)
         self.assertIn("+0.250 [+0.250, +0.250]", stdout)
 
+    def test_budget_table_pairs_each_seed_with_its_own_baseline(self):
+        # Values chosen so that a pairing across seeds, a wrong mean or a share of the wrong
+        # unfitted model gives other figures; seed 7 lacks adaptive at b25 and a failed row is left out.
+        rows = []
+        for seed, offset in (("6666", 0.0), ("7", 1.0)):
+            for method, psnr_full, gaussians_b25, psnr_b25 in (("uniform", 24.0, 100, 23.0),
+                                                                ("adaptive", 24.1, 150, 23.5)):
+                rows.append({"seed": seed, "method": method, "budget": "full", "status": "ok",
+                             "psnr": psnr_full + offset, "model_mib": 100.0, "gaussians": 400 + 100 * offset,
+                             "ssim": 0.8 + offset / 10, "dssim1": 0.1, "dssim2": ""})
+                if not (seed == "7" and method == "adaptive"):
+                    rows.append({"seed": seed, "method": method, "budget": "b25", "status": "ok",
+                                 "psnr": psnr_b25 + 2 * offset, "model_mib": 25.0, "gaussians": gaussians_b25})
+        rows.append({"seed": "7", "method": "adaptive", "budget": "b25", "status": "failed", "psnr": 99.0,
+                     "model_mib": 1.0, "gaussians": 1})
+        path = os.path.join(self.dir, "budgets.csv")
+        with open(path, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=["seed", "method", "budget", "status", "psnr", "model_mib", "gaussians",
+                                              "ssim", "dssim1", "dssim2"])
+            w.writeheader()
+            w.writerows(rows)
+        tool = os.path.join(SOURCE, "bench", "budget_table.py")
+        rc, stdout, stderr = run(tool, path, "--budgets", "b25,full")
+        self.assertEqual(rc, 0, stderr)
+        lines = stdout.splitlines()
+        # Uniform at b25: 23.0 (s6666) and 25.0 (s7); kept 100 of 400 and 100 of 500 Gaussians.
+        self.assertIn("| b25 | uniform | 24.000 | 23.000, 25.000 | - | - | - | 25.00 | 100 | 22.5 % |", lines)
+        # Adaptive at b25: seed 7's failed row is not a value.
+        self.assertIn("| b25 | adaptive | 23.500 | 23.500, - | - | - | - | 25.00 | 150 | 37.5 % |", lines)
+        # SSIM/DSSIM: means where every seed has a value, "-" where one is missing.
+        full_uniform = "| full | uniform | 24.500 | 24.000, 25.000 | 0.8500 | 0.1000 | - | 100.00 | 450 | 100.0 % |"
+        self.assertIn(full_uniform, lines)
+        self.assertLess(lines.index("| b25 | uniform | 24.000 | 23.000, 25.000 | - | - | - | 25.00 | 100 | 22.5 % |"),
+                        lines.index(full_uniform), "budgets in the order asked for")
+        # Adaptive - uniform: only seed 6666 has both at b25; at full each seed has its own pair.
+        self.assertIn("| b25 | +0.500, - | +0.500 | 1 |", lines)
+        self.assertIn("| full | +0.100, +0.100 | +0.100 | 2 |", lines)
+        rc, _, stderr = run(tool, os.path.join(self.dir, "missing.csv"))
+        self.assertEqual(rc, 2)
+        self.assertIn("missing.csv", stderr)
+
     def test_failures_become_rows_and_retry_failed_reruns_them(self):
         rc, stdout, stderr = self.matrix(env={"FAKE_ATEX_FAIL": "--textures adaptive"})
         self.assertEqual(rc, 0, stderr)

@@ -23,7 +23,8 @@
 //
 // Guarantees: a fitted asset's encoded size is at most the budget (checked on the
 // exact bytes, not estimated) and the asset passes ValidateAsset; a budget below
-// the smallest valid asset for the input fails with kOutOfRange naming that size.
+// the smallest valid asset that the plan's levers can reach fails with kBudgetTooSmall
+// naming that size (CheckBudget).
 #pragma once
 
 #include <cstdint>
@@ -52,6 +53,7 @@ constexpr LeverSet LeverBit(Lever lever) { return LeverSet{1} << static_cast<int
 constexpr bool HasLever(LeverSet set, Lever lever) { return (set & LeverBit(lever)) != 0; }
 constexpr LeverSet kDefaultLevers = LeverBit(Lever::kPrune) | LeverBit(Lever::kTextures) |
                                     LeverBit(Lever::kShDegree) | LeverBit(Lever::kEncoding) | LeverBit(Lever::kGrid);
+constexpr LeverSet kAllLevers = kDefaultLevers | LeverBit(Lever::kAllTextures);
 // "prune,all-textures" → the set; "default" → kDefaultLevers. kInvalidArgument names an
 // unknown lever (and lists the known ones) or an empty list.
 StatusOr<LeverSet> ParseLevers(const std::string& text);

@@ -49,7 +49,7 @@ StatusOr<LeverSet> ParseLevers(const std::string& text) {
     }
     if (!known) {
       return MakeError(StatusCode::kInvalidArgument, "unknown lever '", name, "' (known: ",
-                       LeverSetNames(~LeverSet{0}), ", or default)");
+                       LeverSetNames(kAllLevers), ", or default)");
     }
   }
   if (set == 0) return MakeError(StatusCode::kInvalidArgument, "no lever named in '", text, "'");
@@ -252,14 +252,20 @@ StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, i
   if (HasLever(levers, Lever::kTextures)) {
     ATEX_RETURN_IF_ERROR(ShrinkTextures(&smallest, std::numeric_limits<uint64_t>::max()).status());
   } else if (HasLever(levers, Lever::kAllTextures)) {  // the same 1×1 pool, its texture_mode kept
-    while (smallest.textures && ShrinkableTexels(*smallest.textures) > 0) ATEX_RETURN_IF_ERROR(HalveAllTextures(&smallest));
+    while (smallest.textures && ShrinkableTexels(*smallest.textures) > 0) {
+      ATEX_RETURN_IF_ERROR(HalveAllTextures(&smallest));
+    }
   }
   if (HasLever(levers, Lever::kGrid)) {
-    while (CanCoarsenGrid(smallest, min_grid_resolution)) ATEX_RETURN_IF_ERROR(CoarsenGrid(&smallest, min_grid_resolution));
+    while (CanCoarsenGrid(smallest, min_grid_resolution)) {
+      ATEX_RETURN_IF_ERROR(CoarsenGrid(&smallest, min_grid_resolution));
+    }
   }
   WriteOptions w = write;
   if (HasLever(levers, Lever::kEncoding)) {
-    for (int s = 0; s < static_cast<int>(Stream::kCount); ++s) SetEncoding(&w, static_cast<Stream>(s), ScalarEncoding::kQuant8);
+    for (int s = 0; s < static_cast<int>(Stream::kCount); ++s) {
+      SetEncoding(&w, static_cast<Stream>(s), ScalarEncoding::kQuant8);
+    }
   }
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(smallest, w));
   return static_cast<uint64_t>(bytes.size());
@@ -394,8 +400,9 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
       !(options.texture_fraction > 0 && options.texture_fraction <= 1)) {
     return MakeError(StatusCode::kInvalidArgument, "fit: step fractions must be in (0, 1)");
   }
-  if ((options.levers & ~kDefaultLevers & ~LeverBit(Lever::kAllTextures)) != 0 || options.levers == 0) {
-    return MakeError(StatusCode::kInvalidArgument, "fit: the lever set ", options.levers, " names no lever or an unknown one");
+  if ((options.levers & ~kAllLevers) != 0 || options.levers == 0) {
+    return MakeError(StatusCode::kInvalidArgument, "fit: the lever set ", options.levers,
+                     " names no lever or an unknown one");
   }
   ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
   Plan plan;

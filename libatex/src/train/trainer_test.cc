@@ -133,7 +133,9 @@ TEST(TrainerLego, CpuStageTwoGrowsWithinTheBudget) {
       noted |= e.find("the last growth (step 20) leaves 10 of 30") != std::string::npos;
     }
     EXPECT_TRUE(noted);
-    if (fraction == 0.5) EXPECT_GT(stage2->growths[1].rejected_budget + stage2->growths[0].rejected_budget, 0u);
+    if (fraction == 0.5) {
+      EXPECT_GT(stage2->growths[1].rejected_budget + stage2->growths[0].rejected_budget, 0u);
+    }
   }
   EXPECT_LT(adaptive_texels, 16u * n) << "adaptive should use fewer texels than uniform 4x4";
 }
