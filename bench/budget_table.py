@@ -5,32 +5,21 @@
 
 Prints two tables:
   1. per budget and method: test PSNR, its mean over the seeds that have the cell, the means of
-     SSIM, DSSIM1 and DSSIM2, file MiB and the Gaussians kept (mean over seeds, and as a share of
-     the same seed's unfitted model);
+     SSIM, DSSIM1 and DSSIM2, file MiB, the Gaussians kept (mean over seeds, and as a share of
+     the same seed's unfitted model), the texels kept (mean) and the fit's seconds (min-max);
   2. per budget: METHOD - BASELINE test PSNR for each seed that has both cells, and their mean.
-Budgets come in the order given (default: the order of first appearance in the file). Rows whose
-status is not "ok" are left out. The confidence intervals are bench/paired_bootstrap.py's.
+Budgets come in the order given (default: the order of first appearance in the file), methods in
+charts.py's order. Rows are read as charts.py reads them (not "ok" or without PSNR: left out). The confidence intervals are bench/paired_bootstrap.py's.
 """
 
 import argparse
-import csv
 import sys
 
-
-def number(text):
-    try:
-        return float(text)
-    except (TypeError, ValueError):
-        return None
+from charts import method_sort_key, number, read_rows
 
 
 def mean(values):
     return sum(values) / len(values) if values else None
-
-
-def read(path):
-    with open(path, newline="") as f:
-        return [r for r in csv.DictReader(f) if r.get("status") == "ok" and number(r.get("psnr")) is not None]
 
 
 def tables(rows, budgets, baseline, method):
@@ -38,14 +27,11 @@ def tables(rows, budgets, baseline, method):
     for r in rows:
         if r["seed"] not in seeds:
             seeds.append(r["seed"])
-    methods = []
-    for r in rows:
-        if r["method"] not in methods:
-            methods.append(r["method"])
+    methods = sorted({r["method"] for r in rows}, key=method_sort_key)
     cell = {(r["budget"], r["method"], r["seed"]): r for r in rows}
     out = ["| budget | method | test PSNR, mean | per seed (%s) | SSIM | DSSIM1 | DSSIM2 | file MiB, mean "
-           "| Gaussians kept, mean | of the unfitted model |" % ", ".join(seeds),
-           "|---|---|---:|---|---:|---:|---:|---:|---:|---:|"]
+           "| Gaussians kept, mean | of the unfitted model | texels, mean | fit s |" % ", ".join(seeds),
+           "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for b in budgets:
         for m in methods:
             rs = [(s, cell[(b, m, s)]) for s in seeds if (b, m, s) in cell]
@@ -61,11 +47,15 @@ def tables(rows, budgets, baseline, method):
             for key in ("ssim", "dssim1", "dssim2"):
                 values = [number(r.get(key)) for _, r in rs]
                 structure.append("-" if None in values else "%.4f" % mean(values))
-            out.append("| %s | %s | %.3f | %s | %s | %.2f | %s | %s |" % (
+            texels = [number(r.get("texels")) for _, r in rs]
+            fit_s = [number(r.get("fit_s")) for _, r in rs if number(r.get("fit_s")) is not None]
+            out.append("| %s | %s | %.3f | %s | %s | %.2f | %s | %s | %s | %s |" % (
                 b, m, mean([number(r["psnr"]) for _, r in rs]), per_seed, " | ".join(structure),
                 mean([number(r["model_mib"]) for _, r in rs]),
                 "%.0f" % gaussians if gaussians is not None else "-",
-                "%.1f %%" % (100 * mean(shares)) if shares else "-"))
+                "%.1f %%" % (100 * mean(shares)) if shares else "-",
+                "-" if None in texels else "%.0f" % mean(texels),
+                "%.1f-%.1f" % (min(fit_s), max(fit_s)) if fit_s else "-"))
     out += ["", "| budget | %s - %s, per seed (%s) | mean | seeds |" % (method, baseline, ", ".join(seeds)),
             "|---|---|---:|---:|"]
     for b in budgets:
@@ -87,7 +77,7 @@ def main(argv=None):
     p.add_argument("--method", default="adaptive")
     args = p.parse_args(argv)
     try:
-        rows = read(args.csv)
+        rows, _ = read_rows([args.csv])
     except OSError as e:
         print("budget_table: %s" % e, file=sys.stderr)
         return 2

@@ -19,7 +19,7 @@ Writes, one panel per dataset where it applies:
 Only rows of --variant (default "full") are drawn when that variant is present, and with --seed
 only that seed's rows (a matrix of several seeds would otherwise join them in one line). With
 --mean-seeds each (dataset, method, budget) becomes one point, PSNR and MiB averaged over the seeds,
-kept only where every seed of the file has that cell. --budgets draws only the budgets whose name
+kept only where every seed of the file has that cell (the size chart only: nothing else is averaged). --budgets draws only the budgets whose name
 matches the regular expression (one protocol per chart); --charts writes only the named charts.
 """
 
@@ -250,6 +250,9 @@ def main(argv=None):
         return 2
     if args.seed and args.mean_seeds:
         print("charts: --seed and --mean-seeds are alternatives", file=sys.stderr)
+        return 2
+    if args.mean_seeds and chosen != ["size"]:  # only PSNR and MiB are averaged
+        print("charts: --mean-seeds draws the size chart only (--charts size)", file=sys.stderr)
         return 2
     try:
         import matplotlib

@@ -48,7 +48,7 @@ def collect(dirs, out):
 def difference(base_views, views, samples):
     diffs, _ = paired_bootstrap.pairs(base_views, views, "psnr")
     r = paired_bootstrap.bootstrap(diffs, "view", samples, 6666)
-    return "%+.3f [%+.3f, %+.3f]" % (r["mean"], r["ci95"][0], r["ci95"][1])
+    return "%+.3f [%+.3f, %+.3f]" % (r["mean"], r["ci95"][0], r["ci95"][1]) if r["ci95"] else "%+.3f" % r["mean"]
 
 
 def summary(path, rows_path, dataset, variant, samples):

@@ -23,7 +23,8 @@ Resampling unit:
            difference between methods depends on the stage-1 model (BENCHMARKS.md, stage 2), so this is
            the interval of "another training run"; with a handful of seeds it is coarse.
 The interval is the percentile interval of the bootstrap means (2.5%, 97.5%); `p_le_0` is the
-fraction of bootstrap means <= 0 (a one-sided bootstrap p-value for "method > baseline").
+fraction of bootstrap means <= 0 (a one-sided bootstrap p-value for "method > baseline"). With one
+cluster (e.g. --unit seed over one seed) neither exists: the table says so, the JSON has null.
 """
 
 import argparse
@@ -72,13 +73,16 @@ def pairs(base_views, method_views, metric, dataset="", seed=None):
 
 
 def bootstrap(diffs, unit, samples, seed):
-    """Mean difference, its 95% percentile interval and P(bootstrap mean <= 0)."""
+    """Mean difference, its 95% percentile interval and P(bootstrap mean <= 0); the interval and
+    P are None with fewer than two clusters (resampling one cluster only repeats it)."""
     clusters = {}
     for keys, d in diffs:
         clusters.setdefault(keys[unit], []).append(d)
     groups = [(sum(v), len(v)) for v in clusters.values()]
     n = len(groups)
     mean = sum(d for _, d in diffs) / len(diffs)
+    if n < 2:
+        return {"mean": mean, "ci95": None, "p_le_0": None, "clusters": n}
     rng = random.Random(seed)
     means = []
     for _ in range(samples):
@@ -151,9 +155,11 @@ def markdown(results):
     lines = ["| dataset | variant | seed | budget | method - baseline | metric | pairs | clusters (unit) | mean diff | "
              "95% CI | P(<=0) |", "|---|---|---|---|---|---|---:|---:|---:|---|---:|"]
     for r in results:
-        lines.append("| %s | %s | %s | %s | %s - %s | %s | %d | %d (%s) | %+.4f | [%+.4f, %+.4f] | %.4f |" % (
+        ci = "[%+.4f, %+.4f]" % tuple(r["ci95"]) if r["ci95"] else "none (one cluster)"
+        p = "%.4f" % r["p_le_0"] if r["p_le_0"] is not None else "-"
+        lines.append("| %s | %s | %s | %s | %s - %s | %s | %d | %d (%s) | %+.4f | %s | %s |" % (
             r["dataset"], r["variant"], r["seed"], r["budget"], r["method"], r["baseline"], r["metric"], r["pairs"],
-            r["clusters"], r["unit"], r["mean"], r["ci95"][0], r["ci95"][1], r["p_le_0"]))
+            r["clusters"], r["unit"], r["mean"], ci, p))
     return "\n".join(lines) + "\n"
 
 

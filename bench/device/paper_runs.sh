@@ -14,12 +14,10 @@ log() { echo "== $(date +%T) $*" >&2; }
 case $phase in
   build)
     # PARITY=0: the CLI only (a change that leaves the CUDA code alone need not rerun the parity tests).
-    if [ "${PARITY:-1}" = 0 ]; then
-      build_tree . "$BUILD" "$(nproc)" atex_cli 2>&1 | tail -3
-    else
-      build_tree . "$BUILD" "$(nproc)" atex_cli backend_parity_test deform_parity_test render_parity_test \
-        loss_parity_test 2>&1 | tail -3
-    fi
+    targets="atex_cli"
+    [ "${PARITY:-1}" = 0 ] || targets="$targets backend_parity_test deform_parity_test render_parity_test loss_parity_test"
+    # shellcheck disable=SC2086  # the targets are words
+    build_tree . "$BUILD" "$(nproc)" $targets 2>&1 | tail -3
     nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader | tee "$out/gpu.txt"
     if [ "${PARITY:-1}" != 0 ]; then
       # All four parity tests, on the first GPU, with their measured errors kept.

@@ -233,9 +233,12 @@ TEST(BackendParity, StepsStatisticsEditsAndGrowthMatchTheCpuBackend) {
   // A second growth with rescaled moments (Stage2Config::rescale_grown_moments).
   train::ModelState once;
   ATEX_ASSERT_OK(cpu->Save(&once));
+  growth.rescale_grown_moments = true;
   auto again = train::PlanTextureGrowth(*once.textures, evidence, growth, 16 * before.gaussians.size(), nullptr);
   ASSERT_TRUE(again.ok());
-  again->rescale_moments = true;
+  ASSERT_TRUE(again->rescale_moments);
+  ASSERT_TRUE(again->heights != once.textures->heights || again->widths != once.textures->widths)
+      << "the second growth must grow textures for the rescaled moments to be compared";
   ATEX_ASSERT_OK(cpu->ResizeTextures(*again));
   ATEX_ASSERT_OK(gpu->ResizeTextures(*again));
   train::GaussianEdit edit;

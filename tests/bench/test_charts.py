@@ -70,7 +70,7 @@ def check_selection(args):
         print("FAIL: --charts size wrote %s (exit %d: %s)" % (written, picked.returncode, picked.stderr))
         failures += 1
     for bad in (["--charts", "sizes"], ["--budgets", "("], ["--budgets", "^nothing$"],
-                ["--seed", "6666", "--mean-seeds"]):
+                ["--seed", "6666", "--mean-seeds"], ["--mean-seeds", "--charts", "size,fps"]):
         proc = subprocess.run([sys.executable, args.charts, args.csv, "--out", folder] + bad,
                               capture_output=True, text=True)
         if proc.returncode != 2 or not proc.stderr.startswith("charts:"):

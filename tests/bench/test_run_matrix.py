@@ -300,28 +300,31 @@ class Matrix(Base):
                              "ssim": 0.8 + offset / 10, "dssim1": 0.1, "dssim2": ""})
                 if not (seed == "7" and method == "adaptive"):
                     rows.append({"seed": seed, "method": method, "budget": "b25", "status": "ok",
-                                 "psnr": psnr_b25 + 2 * offset, "model_mib": 25.0, "gaussians": gaussians_b25})
+                                 "psnr": psnr_b25 + 2 * offset, "model_mib": 25.0, "gaussians": gaussians_b25,
+                                 "texels": 16 * gaussians_b25 * (1 + offset), "fit_s": 10 + 20 * offset})
         rows.append({"seed": "7", "method": "adaptive", "budget": "b25", "status": "failed", "psnr": 99.0,
                      "model_mib": 1.0, "gaussians": 1})
         path = os.path.join(self.dir, "budgets.csv")
         with open(path, "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=["seed", "method", "budget", "status", "psnr", "model_mib", "gaussians",
-                                              "ssim", "dssim1", "dssim2"])
+                                              "ssim", "dssim1", "dssim2", "texels", "fit_s"])
             w.writeheader()
             w.writerows(rows)
         tool = os.path.join(SOURCE, "bench", "budget_table.py")
         rc, stdout, stderr = run(tool, path, "--budgets", "b25,full")
         self.assertEqual(rc, 0, stderr)
         lines = stdout.splitlines()
-        # Uniform at b25: 23.0 (s6666) and 25.0 (s7); kept 100 of 400 and 100 of 500 Gaussians.
-        self.assertIn("| b25 | uniform | 24.000 | 23.000, 25.000 | - | - | - | 25.00 | 100 | 22.5 % |", lines)
+        # Uniform at b25: 23.0 (s6666) and 25.0 (s7); kept 100 of 400 and 100 of 500 Gaussians;
+        # texels 1600 and 3200; fits of 10 and 30 s.
+        b25_uniform = "| b25 | uniform | 24.000 | 23.000, 25.000 | - | - | - | 25.00 | 100 | 22.5 % | 2400 | 10.0-30.0 |"
+        self.assertIn(b25_uniform, lines)
         # Adaptive at b25: seed 7's failed row is not a value.
-        self.assertIn("| b25 | adaptive | 23.500 | 23.500, - | - | - | - | 25.00 | 150 | 37.5 % |", lines)
+        self.assertIn("| b25 | adaptive | 23.500 | 23.500, - | - | - | - | 25.00 | 150 | 37.5 % | 2400 | 10.0-10.0 |",
+                      lines)
         # SSIM/DSSIM: means where every seed has a value, "-" where one is missing.
-        full_uniform = "| full | uniform | 24.500 | 24.000, 25.000 | 0.8500 | 0.1000 | - | 100.00 | 450 | 100.0 % |"
+        full_uniform = "| full | uniform | 24.500 | 24.000, 25.000 | 0.8500 | 0.1000 | - | 100.00 | 450 | 100.0 % | - | - |"
         self.assertIn(full_uniform, lines)
-        self.assertLess(lines.index("| b25 | uniform | 24.000 | 23.000, 25.000 | - | - | - | 25.00 | 100 | 22.5 % |"),
-                        lines.index(full_uniform), "budgets in the order asked for")
+        self.assertLess(lines.index(b25_uniform), lines.index(full_uniform), "budgets in the order asked for")
         # Adaptive - uniform: only seed 6666 has both at b25; at full each seed has its own pair.
         self.assertIn("| b25 | +0.500, - | +0.500 | 1 |", lines)
         self.assertIn("| full | +0.100, +0.100 | +0.100 | 2 |", lines)
@@ -414,6 +417,16 @@ class Matrix(Base):
         rc, stdout, _ = run(args[0], args[1], "--baseline", "uniform", "--unit", "camera", "--samples", "500")
         self.assertEqual(rc, 0)
         self.assertIn("(camera)", stdout)
+        # One seed resampled as a whole: one cluster, so no interval and no P (not a zero-width one).
+        rc, stdout, _ = run(args[0], args[1], "--baseline", "uniform", "--method", "adaptive", "--unit", "seed",
+                            "--json", out_json)
+        self.assertEqual(rc, 0)
+        self.assertIn("| 1 (seed) |", stdout)
+        self.assertIn("| none (one cluster) | - |", stdout)
+        with open(out_json) as f:
+            one = [r for r in json.load(f) if r["budget"] == "full"][0]
+        self.assertIsNone(one["ci95"])
+        self.assertIsNone(one["p_le_0"])
 
     def test_paired_bootstrap_pools_seeds_pairing_each_with_its_own_baseline(self):
         self.write_config(seeds=[6666, 7], budgets=["full"])

@@ -46,6 +46,7 @@ StatusOr<TextureResize> PlanTextureGrowth(const TexturePool& layout, const Growt
                      " textures");
   }
   TextureResize resize{layout.heights, layout.widths};
+  resize.rescale_moments = config.rescale_grown_moments;
   GrowthReport local;
   uint64_t total = 0;
   for (size_t i = 0; i < n; ++i) total += uint64_t{layout.heights[i]} * layout.widths[i];

@@ -71,6 +71,13 @@ TEST(TextureGrowth, AnisotropicRule) {
   EXPECT_EQ(report.grown_u_only, 1u);
   EXPECT_EQ(report.grown_v_only, 1u);
   EXPECT_EQ(report.grown_both, 2u);
+  EXPECT_FALSE(resize->rescale_moments) << "off by default";
+
+  config.rescale_grown_moments = true;  // the plan carries the option to the backend
+  resize = PlanTextureGrowth(layout, e, config, 1000, &report);
+  ASSERT_TRUE(resize.ok());
+  EXPECT_TRUE(resize->rescale_moments);
+  config.rescale_grown_moments = false;
 
   config.ablations.anisotropic = false;
   resize = PlanTextureGrowth(layout, e, config, 1000, &report);

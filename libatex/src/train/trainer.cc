@@ -293,7 +293,7 @@ class Loop {
     int last = 0;
     for (int step : config_.stage2.growth_steps) last = std::max(last, step);
     if (last == 0 || iterations <= 0) return;
-    if (last >= iterations) {
+    if (last > iterations) {  // a growth at the last step still runs (after it), with 0 steps left
       Event(StrCat("note: growth step ", last, " is not reached in ", iterations, " stage-2 steps"));
     } else if (2 * last > iterations) {
       Event(StrCat("note: the last growth (step ", last, ") leaves ", iterations - last, " of ", iterations,
@@ -483,7 +483,6 @@ class Loop {
       GrowthReport report;
       ATEX_ASSIGN_OR_RETURN(TextureResize resize,
                             PlanTextureGrowth(*layout.textures, evidence, config_.stage2, texel_budget_, &report));
-      resize.rescale_moments = config_.stage2.rescale_grown_moments;
       ATEX_RETURN_IF_ERROR(backend_.ResizeTextures(resize));
       ATEX_RETURN_IF_ERROR(backend_.ResetStats(kStatsTexture));
       summary_.growths.push_back(report);

@@ -189,17 +189,36 @@ TEST(TrainerLego, StageTwoWithoutTexturesFineTunesTheModel) {
   EXPECT_TRUE(ValidateAsset(stage2->asset).ok());
 }
 
-// Both stages of a short SmallConfig on `backend`, with one texture growth at stage-2 step 5:
-// after it every texture side is at most 2, so every texture can grow again.
-Status TrainWithOneGrowth(const Dataset& data, Backend& backend) {
-  TrainConfig config = SmallConfig();
-  config.stage1.coarse_iterations = 30;
-  config.stage1.fine_iterations = 10;
-  config.stage2.iterations = 15;
-  config.stage2.growth_steps = {5};
-  TrainerOptions options;
-  options.config = config;
-  return Train(data, backend, options).status();
+// The state after both stages of a short SmallConfig on the CPU backend, with one texture
+// growth at stage-2 step 5: after it every texture side is at most 2, so every texture can
+// grow again. Trained once per test binary; the growth tests below start from it.
+const StatusOr<ModelState>& StateAfterOneGrowth(const Dataset& data) {
+  static const StatusOr<ModelState> state = [&]() -> StatusOr<ModelState> {
+    TrainConfig config = SmallConfig();
+    config.stage1.coarse_iterations = 30;
+    config.stage1.fine_iterations = 10;
+    config.stage2.iterations = 15;
+    config.stage2.growth_steps = {5};
+    TrainerOptions options;
+    options.config = config;
+    auto backend = MakeCpuBackend();
+    ATEX_RETURN_IF_ERROR(Train(data, *backend, options).status());
+    ModelState saved;
+    ATEX_RETURN_IF_ERROR(backend->Save(&saved));
+    if (!saved.textures) return MakeError(StatusCode::kInternal, "stage 2 left no texture pool");
+    return saved;
+  }();
+  return state;
+}
+
+// Every side doubled, up to 4: every texture that can grow grows, along both axes.
+TextureResize GrowEverySide(const TexturePool& pool) {
+  TextureResize grow{pool.heights, pool.widths};
+  for (size_t i = 0; i < grow.heights.size(); ++i) {
+    grow.heights[i] = static_cast<uint8_t>(std::min(4, grow.heights[i] * 2));
+    grow.widths[i] = static_cast<uint8_t>(std::min(4, grow.widths[i] * 2));
+  }
+  return grow;
 }
 
 // Growth through the backend leaves the rendered image unchanged (corner-aligned resampling).
@@ -207,22 +226,16 @@ TEST(TrainerLego, GrowthThroughTheBackendLeavesRendersUnchanged) {
   ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
   auto data = OpenLego(path);
   ASSERT_NE(data, nullptr);
+  const StatusOr<ModelState>& state = StateAfterOneGrowth(*data);
+  ASSERT_TRUE(state.ok()) << state.status().ToString();
   auto backend = MakeCpuBackend();
-  const Status trained = TrainWithOneGrowth(*data, *backend);
-  ASSERT_TRUE(trained.ok()) << trained.ToString();
-  ModelState state;
-  ASSERT_TRUE(backend->Save(&state).ok());
+  ASSERT_TRUE(backend->Load(*state).ok());
   RenderRequest request;
-  request.active_sh_degree = state.gaussians.sh_degree;
+  request.active_sh_degree = state->gaussians.sh_degree;
   const Camera& camera = data->test_views()[3].camera;
   auto before = backend->Render(camera, request);
   ASSERT_TRUE(before.ok());
-  TextureResize grow{state.textures->heights, state.textures->widths};
-  for (size_t i = 0; i < grow.heights.size(); ++i) {  // grow every texture that can grow, both axes
-    grow.heights[i] = static_cast<uint8_t>(std::min(4, grow.heights[i] * 2));
-    grow.widths[i] = static_cast<uint8_t>(std::min(4, grow.widths[i] * 2));
-  }
-  ASSERT_TRUE(backend->ResizeTextures(grow).ok());
+  ASSERT_TRUE(backend->ResizeTextures(GrowEverySide(*state->textures)).ok());
   auto after = backend->Render(camera, request);
   ASSERT_TRUE(after.ok());
   double worst = 0;
@@ -239,17 +252,12 @@ TEST(TrainerLego, RescaledGrowthScalesTheInterpolatedMomentsByTheTexelShare) {
   ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
   auto data = OpenLego(path);
   ASSERT_NE(data, nullptr);
-  auto trainer_backend = MakeCpuBackend();
-  const Status trained = TrainWithOneGrowth(*data, *trainer_backend);
-  ASSERT_TRUE(trained.ok()) << trained.ToString();
-  ModelState state;
-  ASSERT_TRUE(trainer_backend->Save(&state).ok());
+  const StatusOr<ModelState>& trained = StateAfterOneGrowth(*data);
+  ASSERT_TRUE(trained.ok()) << trained.status().ToString();
+  const ModelState& state = *trained;
   ASSERT_TRUE(state.textures.has_value());
-  TextureResize interpolate{state.textures->heights, state.textures->widths};
-  for (size_t i = 0; i < interpolate.heights.size(); ++i) {
-    interpolate.heights[i] = static_cast<uint8_t>(i % 3 == 0 ? 4 : std::min(4, interpolate.heights[i] * 2));
-    interpolate.widths[i] = static_cast<uint8_t>(std::min(4, interpolate.widths[i] * 2));
-  }
+  TextureResize interpolate = GrowEverySide(*state.textures);
+  for (size_t i = 0; i < interpolate.heights.size(); i += 3) interpolate.heights[i] = 4;  // shares of 1/4 too
   TextureResize rescale = interpolate;
   rescale.rescale_moments = true;
   ModelState a, b;

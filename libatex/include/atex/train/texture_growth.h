@@ -33,7 +33,8 @@ struct GrowthReport {
 // (h, 2w) if s_u/s_v > ratio and s_v < max_scale; (2h, w) if s_v/s_u > ratio and
 // s_u < max_scale; else (2h, 2w) (always (2h, 2w) without the anisotropic cue); each
 // side capped at 4. A proposal is accepted only if the total texel count stays within
-// `texel_budget`; a refused proposal does not stop later, smaller ones.
+// `texel_budget`; a refused proposal does not stop later, smaller ones. The resize carries
+// config.rescale_grown_moments for the backend.
 StatusOr<TextureResize> PlanTextureGrowth(const TexturePool& layout, const GrowthEvidence& evidence,
                                           const Stage2Config& config, uint64_t texel_budget, GrowthReport* report);
 
