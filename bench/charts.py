@@ -16,6 +16,8 @@ Writes, one panel per dataset where it applies:
   <prefix>psnr_vs_train_time.png   PSNR vs training time (stage 1 + stage 2 + fit, minutes)
   <prefix>texel_histogram.png      texel-size histogram (h x w) per scene for the textured methods
                                    at their full budget, with texel bytes per Gaussian vs uniform 4x4
+With --metric dynamic_psnr the first three charts show the dynamic-region PSNR instead
+(<prefix>dynamic_psnr_vs_*.png; rows without it are left out of those points).
 Only rows of --variant (default "full") are drawn when that variant is present, and with --seed
 only that seed's rows (a matrix of several seeds would otherwise join them in one line). With
 --mean-seeds each (dataset, method, budget) becomes one point, PSNR and MiB averaged over the seeds,
@@ -33,6 +35,8 @@ import textwrap
 
 HIST_KEYS = ["%dx%d" % (h, w) for h in (1, 2, 4) for w in (1, 2, 4)]
 METHOD_ORDER = ["none", "uniform", "adaptive", "no-temporal-peak", "no-anisotropic", "no-visibility-normalization"]
+# --metric: the y axis of the size, fps and time charts (dynamic_psnr: atex/dynamic_region.h).
+METRIC_LABELS = {"psnr": "test PSNR (dB)", "dynamic_psnr": "test dynamic-region PSNR (dB)"}
 LABELS = {"none": "4DGS (no textures)", "uniform": "uniform 4x4", "adaptive": "adaptive (AdaTex4D)"}
 
 
@@ -58,7 +62,7 @@ def read_rows(paths):
 
 def mean_over_seeds(rows):
     """One row per (dataset, variant, method, budget) that every seed of `rows` has: the first
-    seed's row with psnr and model_mib replaced by their means."""
+    seed's row with psnr, dynamic_psnr and model_mib replaced by their means."""
     seeds = {r.get("seed") for r in rows}
     groups = {}
     for r in rows:
@@ -68,7 +72,7 @@ def mean_over_seeds(rows):
         if {r.get("seed") for r in group} != seeds:
             continue
         row = dict(group[0])
-        for key in ("psnr", "model_mib"):
+        for key in ("psnr", "dynamic_psnr", "model_mib"):
             values = [number(r.get(key)) for r in group]
             row[key] = "" if None in values else repr(sum(values) / len(values))
         row["seed"] = "mean of %d" % len(seeds)
@@ -95,7 +99,9 @@ def no_data(ax, what):
 
 
 class Charts:
-    def __init__(self, plt, rows, out, prefix, title):
+    def __init__(self, plt, rows, out, prefix, title, metric="psnr"):
+        self.metric = metric  # the y axis of the size, fps and time charts
+        self.ylabel = METRIC_LABELS[metric]
         self.plt = plt
         self.rows = rows
         self.out = out
@@ -126,16 +132,18 @@ class Charts:
             drawn = False
             for m in self.methods:
                 rs = [r for r in self.rows if r["dataset"] == ds and r["method"] == m]
-                line = sorted(((number(r["model_mib"]), number(r["psnr"]), r["budget"]) for r in rs
+                line = sorted(((number(r["model_mib"]), number(r.get(self.metric)), r["budget"]) for r in rs
                                if r.get("budget_kind", "full") in ("full", "budget")
-                               and number(r.get("model_mib")) is not None), key=lambda t: t[0])
+                               and number(r.get("model_mib")) is not None and number(r.get(self.metric)) is not None),
+                              key=lambda t: t[0])
                 if line:
                     ax.plot([p[0] for p in line], [p[1] for p in line], "o-", color=self.color[m], label=self.label(m))
                     for x, y, b in line:
                         ax.annotate(b, (x, y), textcoords="offset points", xytext=(3, 3), fontsize=7, color="0.3")
                     drawn = True
-                counts = [(number(r["model_mib"]), number(r["psnr"]), r["budget"]) for r in rs
-                          if r.get("budget_kind") == "keep_count" and number(r.get("model_mib")) is not None]
+                counts = [(number(r["model_mib"]), number(r.get(self.metric)), r["budget"]) for r in rs
+                          if r.get("budget_kind") == "keep_count" and number(r.get("model_mib")) is not None
+                          and number(r.get(self.metric)) is not None]
                 if counts:
                     ax.plot([p[0] for p in counts], [p[1] for p in counts], "x", color=self.color[m], markersize=8,
                             label=self.label(m) + ", fixed count")
@@ -146,11 +154,11 @@ class Charts:
                 no_data(ax, "model sizes")
             ax.set_title(ds)
             ax.set_xlabel("model size (MiB, file bytes)")
-            ax.set_ylabel("test PSNR (dB)")
+            ax.set_ylabel(self.ylabel)
             ax.grid(alpha=0.3)
             if drawn:
                 ax.legend(fontsize=7)
-        self.save(fig, "psnr_vs_model_mib.png", "PSNR vs model size (fixed-budget points)")
+        self.save(fig, self.metric + "_vs_model_mib.png", self.ylabel + " vs model size (fixed-budget points)")
 
     def psnr_vs_fps(self):
         sizes = ["fps_native"] + sorted({k for r in self.rows for k in r if k.startswith("fps_") and k != "fps_native"})
@@ -159,8 +167,9 @@ class Charts:
         for ax, (ds, col) in zip(axes, panels):
             drawn = False
             for m in self.methods:
-                pts = [(number(r.get(col)), number(r["psnr"]), r["budget"]) for r in self.rows
-                       if r["dataset"] == ds and r["method"] == m and number(r.get(col))]
+                pts = [(number(r.get(col)), number(r.get(self.metric)), r["budget"]) for r in self.rows
+                       if r["dataset"] == ds and r["method"] == m and number(r.get(col))
+                       and number(r.get(self.metric)) is not None]
                 if pts:
                     ax.scatter([p[0] for p in pts], [p[1] for p in pts], color=self.color[m], label=self.label(m), s=22)
                     drawn = True
@@ -168,34 +177,35 @@ class Charts:
             size = native if col == "fps_native" else col[len("fps_"):]
             ax.set_title("%s at %s" % (ds, size or "dataset resolution"))
             ax.set_xlabel("render FPS (deformation included)")
-            ax.set_ylabel("test PSNR (dB)")
+            ax.set_ylabel(self.ylabel)
             ax.grid(alpha=0.3)
             if drawn:
                 ax.set_xscale("log")
                 ax.legend(fontsize=7)
             else:
                 no_data(ax, "FPS measurements")
-        self.save(fig, "psnr_vs_fps.png", "PSNR vs render speed")
+        self.save(fig, self.metric + "_vs_fps.png", self.ylabel + " vs render speed")
 
     def psnr_vs_time(self):
         fig, axes = grid(self.plt, len(self.datasets))
         for ax, ds in zip(axes, self.datasets):
             drawn = False
             for m in self.methods:
-                pts = [(number(r.get("train_s_total")) / 60.0, number(r["psnr"]), r["budget"]) for r in self.rows
-                       if r["dataset"] == ds and r["method"] == m and number(r.get("train_s_total"))]
+                pts = [(number(r.get("train_s_total")) / 60.0, number(r.get(self.metric)), r["budget"])
+                       for r in self.rows if r["dataset"] == ds and r["method"] == m and number(r.get("train_s_total"))
+                       and number(r.get(self.metric)) is not None]
                 if pts:
                     ax.scatter([p[0] for p in pts], [p[1] for p in pts], color=self.color[m], label=self.label(m), s=22)
                     drawn = True
             ax.set_title(ds)
             ax.set_xlabel("training time, stage 1 + stage 2 + fit (min)")
-            ax.set_ylabel("test PSNR (dB)")
+            ax.set_ylabel(self.ylabel)
             ax.grid(alpha=0.3)
             if drawn:
                 ax.legend(fontsize=7)
             else:
                 no_data(ax, "training times")
-        self.save(fig, "psnr_vs_train_time.png", "PSNR vs training time")
+        self.save(fig, self.metric + "_vs_train_time.png", self.ylabel + " vs training time")
 
     def texel_histogram(self):
         fig, axes = grid(self.plt, len(self.datasets), width=6.0)
@@ -242,6 +252,8 @@ def main(argv=None):
     p.add_argument("--charts", default="size,fps,time,histogram",
                    help="which charts, comma-separated (default: size,fps,time,histogram)")
     p.add_argument("--title", default="", help="appended to every chart title")
+    p.add_argument("--metric", default="psnr", choices=sorted(METRIC_LABELS),
+                   help="y axis of the size, fps and time charts (default psnr; dynamic_psnr: the dynamic region's)")
     args = p.parse_args(argv)
     chosen = [c for c in args.charts.split(",") if c]
     unknown = [c for c in chosen if c not in ("size", "fps", "time", "histogram")]
@@ -289,7 +301,7 @@ def main(argv=None):
     if skipped:
         print("charts: %d row(s) left out (failed or without PSNR)" % skipped, file=sys.stderr)
     os.makedirs(args.out, exist_ok=True)
-    charts = Charts(plt, rows, args.out, args.prefix, args.title)
+    charts = Charts(plt, rows, args.out, args.prefix, args.title, args.metric)
     for name, draw in (("size", charts.psnr_vs_size), ("fps", charts.psnr_vs_fps), ("time", charts.psnr_vs_time),
                        ("histogram", charts.texel_histogram)):
         if name in chosen:

@@ -33,7 +33,7 @@ import math
 import random
 import sys
 
-METRICS = {"psnr": 2, "ssim": 3, "dssim1": 4, "dssim2": 5}  # index in a row's "views" entries
+METRICS = {"psnr": 2, "ssim": 3, "dssim1": 4, "dssim2": 5, "dynamic_psnr": 6}  # index in a row's "views" entries
 
 
 def load_rows(path):
@@ -51,19 +51,19 @@ def load_rows(path):
 
 
 def eval_views(ev):
-    """[camera, timestep, psnr, ssim, dssim1, dssim2] rows of an `atex eval --json` output."""
-    return [[v.get("camera"), v.get("timestep"), v.get("psnr"), v.get("ssim"), v.get("dssim1"), v.get("dssim2")]
-            for v in ev.get("views", [])]
+    """[camera, timestep, psnr, ssim, dssim1, dssim2, dynamic_psnr] rows of an `atex eval --json` output."""
+    return [[v.get("camera"), v.get("timestep"), v.get("psnr"), v.get("ssim"), v.get("dssim1"), v.get("dssim2"),
+             v.get("dynamic_psnr")] for v in ev.get("views", [])]
 
 
 def pairs(base_views, method_views, metric, dataset="", seed=None):
     """[(cluster keys, difference)] over the views both have with a finite metric."""
     k = METRICS[metric]
-    base = {(v[0], v[1]): v[k] for v in base_views}
+    base = {(v[0], v[1]): (v[k] if len(v) > k else None) for v in base_views}
     out, missing = [], 0
     for v in method_views:
         b = base.get((v[0], v[1]))
-        m = v[k]
+        m = v[k] if len(v) > k else None  # rows from before a metric existed lack it
         if isinstance(b, (int, float)) and isinstance(m, (int, float)) and math.isfinite(b) and math.isfinite(m):
             out.append(({"view": (dataset, seed, v[0], v[1]), "camera": (dataset, seed, v[0]), "dataset": dataset,
                          "seed": (dataset, seed)}, m - b))

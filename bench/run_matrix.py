@@ -662,13 +662,14 @@ class Matrix:
     def add_eval(row, ev):
         if not isinstance(ev, dict) or not isinstance(ev.get("mean"), dict):
             raise StepFailed("eval", "eval JSON has no 'mean'")
-        for k in ("psnr", "ssim", "dssim1", "dssim2", "l1"):
+        for k in ("psnr", "ssim", "dssim1", "dssim2", "l1", "dynamic_psnr"):
             row[k] = ev["mean"].get(k)
-        row["cameras"] = [{k: c.get(k) for k in ("camera", "views", "psnr", "ssim", "dssim1", "dssim2")}
+        row["cameras"] = [{k: c.get(k) for k in ("camera", "views", "psnr", "ssim", "dssim1", "dssim2",
+                                                 "dynamic_psnr", "dynamic_fraction")}
                           for c in ev.get("cameras", [])]
-        # Per view (camera, timestep, psnr, ssim, dssim1, dssim2): the paired bootstrap's input.
+        # Per view (camera, timestep, psnr, ssim, dssim1, dssim2, dynamic_psnr): the paired bootstrap's input.
         row["views"] = [[v.get("camera"), v.get("timestep"), v.get("psnr"), v.get("ssim"), v.get("dssim1"),
-                         v.get("dssim2")] for v in ev.get("views", [])]
+                         v.get("dssim2"), v.get("dynamic_psnr")] for v in ev.get("views", [])]
         row["eval_backend"] = ev.get("backend")
 
     @staticmethod
@@ -734,12 +735,15 @@ class Matrix:
 # Results
 
 CSV_FIXED = ["cell", "config", "dataset", "variant", "seed", "method", "budget", "budget_kind", "status",
-             "failed_step", "cause", "psnr", "ssim", "dssim1", "dssim2", "texture_mib", "model_mib", "model_bytes",
+             "failed_step", "cause", "psnr", "ssim", "dssim1", "dssim2", "dynamic_psnr", "texture_mib", "model_mib", "model_bytes",
              "gaussians", "texels", "uniform_texels", "texel_bytes", "uniform_texel_bytes"] + \
             ["hist_" + k for k in HIST_KEYS] + \
             ["peak_gpu_gib", "train_s_stage1", "train_s_stage2", "fit_s", "train_s_total", "train_wall_s_stage1",
              "train_wall_s_stage2", "train_resumes_stage1", "train_resumes_stage2", "stopped_by_time_limit_stage1",
              "stopped_by_time_limit_stage2", "rollbacks", "native_size", "fps_native"]
+
+
+CAMERA_METRICS = ("psnr", "ssim", "dssim1", "dssim2", "dynamic_psnr")
 
 
 def clean(value):
@@ -777,7 +781,7 @@ def load_rows(path):
 def write_csv(rows, path):
     fps_cols = sorted({k for r in rows for k in r if k.startswith("fps_") and k != "fps_native"})
     cams = sorted({c["camera"] for r in rows for c in r.get("cameras", []) if c.get("camera") is not None})
-    cam_cols = ["%s_cam%d" % (m, c) for c in cams for m in ("psnr", "ssim", "dssim1", "dssim2")]
+    cam_cols = ["%s_cam%d" % (m, c) for c in cams for m in CAMERA_METRICS]
     gpu_col = ["gpu"] if any("gpu" in r for r in rows) else []  # only from runs with --gpus
     train_cols = ["train_psnr", "train_ssim"] if any("train_psnr" in r for r in rows) else []  # eval.train_split
     header = CSV_FIXED + gpu_col + train_cols + fps_cols + cam_cols
@@ -789,7 +793,7 @@ def write_csv(rows, path):
         for k, v in (r.get("histogram") or {}).items():
             flat["hist_" + k] = v
         for c in r.get("cameras", []):
-            for m in ("psnr", "ssim", "dssim1", "dssim2"):
+            for m in CAMERA_METRICS:
                 flat["%s_cam%s" % (m, c.get("camera"))] = c.get(m)
         out = []
         for h in header:

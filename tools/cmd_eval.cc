@@ -14,6 +14,7 @@ struct EvalArgs {
   std::string asset, data, backend = "auto", split = "test";
   atex::cli::DatasetArgs dataset;
   float near_plane = atex::kDefaultNearPlane;
+  double dynamic_threshold = atex::kDefaultDynamicThreshold;
   bool json = false;
 };
 
@@ -36,7 +37,8 @@ int RunEval(const EvalArgs& a) {
   }
   request.near_plane = a.near_plane;
   const auto& views = a.split == "test" ? (*dataset)->test_views() : (*dataset)->train_views();
-  auto eval = train::Evaluate(**dataset, *backend->backend, views, request);
+  auto eval = train::Evaluate(**dataset, *backend->backend, views, request,
+                              {.dynamic_region = true, .dynamic_threshold = a.dynamic_threshold});
   if (!eval.ok()) return cli::Fail(cmd, eval.status());
   if (a.json) {
     nlohmann::json j = train::EvalToJson(*eval);
@@ -46,13 +48,20 @@ int RunEval(const EvalArgs& a) {
     cli::PrintJson(j);
   } else {
     for (const auto& c : train::EvalToJson(*eval)["cameras"]) {
-      std::printf("camera %3d (%2d views): PSNR %.3f  SSIM %.4f  DSSIM1 %.4f  DSSIM2 %.4f\n", c["camera"].get<int>(),
+      std::printf("camera %3d (%2d views): PSNR %.3f  SSIM %.4f  DSSIM1 %.4f  DSSIM2 %.4f", c["camera"].get<int>(),
                   c["views"].get<int>(), c["psnr"].get<double>(), c["ssim"].get<double>(), c["dssim1"].get<double>(),
                   c["dssim2"].get<double>());
+      if (c["dynamic_psnr"].is_number()) {
+        std::printf("  dynamic PSNR %.3f (%.1f %% of pixels)", c["dynamic_psnr"].get<double>(),
+                    100.0 * c["dynamic_fraction"].get<double>());
+      }
+      std::printf("\n");
     }
     const auto& m = eval->mean;
-    std::printf("mean over %zu %s views: PSNR %.3f dB  SSIM %.4f  DSSIM1 %.4f  DSSIM2 %.4f\n", eval->views.size(),
+    std::printf("mean over %zu %s views: PSNR %.3f dB  SSIM %.4f  DSSIM1 %.4f  DSSIM2 %.4f", eval->views.size(),
                 a.split.c_str(), m.psnr, m.ssim, m.dssim1, m.dssim2);
+    if (eval->dynamic_views > 0) std::printf("  dynamic PSNR %.3f dB", eval->dynamic_psnr);
+    std::printf("\n");
   }
   return cli::kExitOk;
 }
@@ -67,10 +76,15 @@ atex::cli::Runner SetupEval(CLI::App& app) {
   app.add_option("--near-plane", a->near_plane, "Cull Gaussians at camera z <= this (scene units; training's default)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  app.add_option("--dynamic-threshold", a->dynamic_threshold,
+                 "Dynamic region: pixels whose ground truth's temporal std (RMS over RGB, values in [0, 1]) over the "
+                 "camera's frames exceeds this (atex/dynamic_region.h)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--json", a->json, "Machine-readable output");
   return [a]() { return RunEval(*a); };
 }
 
-ATEX_REGISTER_COMMAND("eval", "Evaluate an asset on a dataset's test views (PSNR, SSIM, DSSIM)", SetupEval);
+ATEX_REGISTER_COMMAND("eval", "Evaluate an asset on a dataset's test views (PSNR, SSIM, DSSIM, dynamic-region PSNR)", SetupEval);
 
 }  // namespace

@@ -12,6 +12,8 @@
 #   fastraster: bench/configs/panoptic_fast_raster.json on all GPUs (out/fast_raster), with FPS
 #   seeds: bench/configs/panoptic_seeds.json on all GPUs (out/seeds), with FPS
 #   protocols: bench/configs/panoptic_budget_protocols.json on all GPUs (out/protocols), no FPS
+#   base:    bench/configs/panoptic_base.json on all GPUs (out/base), with FPS (issue 20)
+#   init:    bench/configs/panoptic_init.json on all GPUs (out/init), with FPS (issue 20)
 # With .oldsrc present, `start` also builds it into build-old in the background, for a later
 # bench/device/raster_ab.sh on the models these jobs train (AB_MODEL_DIR).
 # The two share GPUs through run_matrix's per-GPU lock files: one cell per GPU at a time.
@@ -46,7 +48,7 @@ snapshot() {
     nvidia-smi --query-gpu=index,utilization.gpu,memory.used --format=csv,noheader || true
   } > "$out/progress.txt"
   tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic out/stress out/sweep out/same_time \
-    out/fast_raster out/seeds out/protocols out/*.log out/*.rc \
+    out/fast_raster out/seeds out/protocols out/base out/init out/*.log out/*.rc \
     2>/dev/null || true
 }
 
@@ -65,6 +67,8 @@ case $phase in
         fastraster) launch fastraster bench/configs/panoptic_fast_raster.json out/fast_raster "$gpus" ;;
         seeds) launch seeds bench/configs/panoptic_seeds.json out/seeds "$gpus" ;;
         protocols) launch protocols bench/configs/panoptic_budget_protocols.json out/protocols "$gpus" --skip-fps ;;
+        base) launch base bench/configs/panoptic_base.json out/base "$gpus" ;;
+        init) launch init bench/configs/panoptic_init.json out/init "$gpus" ;;
         *) echo "unknown job $j" >&2; exit 2 ;;
       esac
     done

@@ -12,6 +12,7 @@
 
 #include "deform/deform_cuda.h"
 #include "device_buffer.h"
+#include "loss/colour_affine.h"
 #include "loss/loss_cuda.h"
 #include "optim/adam_cuda.h"
 #include "optim/gather_cuda.h"
@@ -242,9 +243,20 @@ class CudaBackend final : public Backend {
       ATEX_RETURN_IF_ERROR(render_->Forward(cam, inputs, image_.data(), nullptr,
                                             request.accumulate_importance ? importance_.data() : nullptr));
       ATEX_RETURN_IF_ERROR(Mark("render_forward"));
-      ATEX_RETURN_IF_ERROR(loss_->Compute(image_.data(), target, camera.width, camera.height,
+      // The camera's colour correction acts on a copy: the backward pass reads the render itself.
+      const train::ColourAffine& colour = views[k].colour;
+      const float* compared = image_.data();
+      if (!colour.IsIdentity()) {
+        ATEX_RETURN_IF_ERROR(corrected_.Resize(pixels * 3));
+        ATEX_RETURN_IF_ERROR(loss_detail::LaunchColourAffine(image_.data(), corrected_.data(), pixels, colour, stream_));
+        compared = corrected_.data();
+      }
+      ATEX_RETURN_IF_ERROR(loss_->Compute(compared, target, camera.width, camera.height,
                                           static_cast<float>(request.lambda_dssim), 1.0f / batch, image_grad_.data(),
                                           scalars_.data(), scalars_.data() + 2 + k));
+      if (!colour.IsIdentity()) {
+        ATEX_RETURN_IF_ERROR(loss_detail::LaunchScaleGradient(image_grad_.data(), pixels, colour, stream_));
+      }
       ATEX_RETURN_IF_ERROR(Mark("loss"));
       RenderStats stats;
       const bool with_stats = request.accumulate_densify_stats || (request.accumulate_texture_stats && textured);
@@ -826,6 +838,7 @@ class CudaBackend final : public Backend {
   DeviceBuffer<float> d_positions_, d_log_scales_, d_rotations_, d_opacity_, d_sh_;
   DeviceBuffer<float> g_positions_, g_log_scales_, g_rotations_, g_opacity_, g_sh_;
   DeviceBuffer<float> image_, image_grad_;
+  DeviceBuffer<float> corrected_;  // [H][W][3] the render after the view's colour correction
   DeviceBuffer<float> scalars_;  // [0] photometric loss, [1] regulariser, [2 + k] squared error of view k
   DeviceBuffer<int> flag_;
   // Statistics.

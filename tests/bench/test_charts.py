@@ -54,13 +54,15 @@ def check_selection(args):
     sys.path.insert(0, os.path.dirname(os.path.abspath(args.charts)))
     import charts  # noqa: E402 (the module under test, from the path given)
     rows = [{"dataset": "d", "variant": "full", "method": "uniform", "budget": b, "seed": s, "psnr": str(p),
-             "model_mib": str(m)}
+             "dynamic_psnr": str(p - 4), "model_mib": str(m)}
             for b, s, p, m in (("b25", "1", 20.0, 10.0), ("b25", "2", 22.0, 12.0), ("b50", "1", 23.0, 20.0))]
     mean = charts.mean_over_seeds(rows)
-    if [(r["budget"], float(r["psnr"]), float(r["model_mib"])) for r in mean] != [("b25", 21.0, 11.0)]:
-        print("FAIL: mean_over_seeds kept %s (expected b25 only, the cell both seeds have, at 21 dB, 11 MiB)"
-              % [(r["budget"], r["psnr"], r["model_mib"]) for r in mean])
+    got = [(r["budget"], float(r["psnr"]), float(r["dynamic_psnr"]), float(r["model_mib"])) for r in mean]
+    if got != [("b25", 21.0, 17.0, 11.0)]:
+        print("FAIL: mean_over_seeds kept %s (expected b25 only, the cell both seeds have, at 21 dB, dynamic "
+              "17 dB, 11 MiB)" % got)
         failures += 1
+    failures += check_dynamic_metric(args)
     folder = os.path.join(args.out, "selection")
     shutil.rmtree(folder, ignore_errors=True)
     picked = subprocess.run([sys.executable, args.charts, args.csv, "--out", folder, "--budgets", "^(full|b25)$",
@@ -77,6 +79,42 @@ def check_selection(args):
             print("FAIL: %s exited with %d: %s" % (" ".join(bad), proc.returncode, proc.stderr))
             failures += 1
     return failures
+
+
+def check_dynamic_metric(args):
+    """--metric dynamic_psnr draws the dynamic region's PSNR (rows given one: psnr - 3) into
+    dynamic_psnr_vs_*.png and leaves the psnr charts alone. Returns failures."""
+    folder = os.path.join(args.out, "dynamic")
+    shutil.rmtree(folder, ignore_errors=True)
+    os.makedirs(folder)
+    with open(args.csv, newline="") as f:
+        reader = csv.DictReader(f)
+        fields = list(reader.fieldnames) + (["dynamic_psnr"] if "dynamic_psnr" not in reader.fieldnames else [])
+        rows = list(reader)
+    for r in rows:
+        try:
+            r["dynamic_psnr"] = repr(float(r["psnr"]) - 3.0)
+        except ValueError:
+            r["dynamic_psnr"] = ""
+    dynamic_csv = os.path.join(folder, "results.csv")
+    with open(dynamic_csv, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        w.writeheader()
+        w.writerows(rows)
+    proc = subprocess.run([sys.executable, args.charts, dynamic_csv, "--out", folder, "--metric", "dynamic_psnr",
+                           "--charts", "size,fps,time"], capture_output=True, text=True)
+    written = sorted(n for n in os.listdir(folder) if n.endswith(".png"))
+    expected = sorted(n.replace("psnr_vs", "dynamic_psnr_vs") for n in EXPECTED[:3])
+    if proc.returncode != 0 or written != expected:
+        print("FAIL: --metric dynamic_psnr wrote %s, expected %s (exit %d: %s)"
+              % (written, expected, proc.returncode, proc.stderr))
+        return 1
+    bad = subprocess.run([sys.executable, args.charts, dynamic_csv, "--out", folder, "--metric", "lpips"],
+                         capture_output=True, text=True)
+    if bad.returncode != 2:
+        print("FAIL: --metric lpips exited with %d" % bad.returncode)
+        return 1
+    return 0
 
 
 def main():

@@ -230,8 +230,12 @@ class Matrix(Base):
         self.assertEqual(len(table), 9)
         for col in ("psnr", "ssim", "dssim1", "dssim2", "texture_mib", "model_mib", "gaussians", "hist_2x2",
                     "peak_gpu_gib", "train_s_stage1", "train_s_stage2", "fps_native", "fps_1352x1014", "psnr_cam0",
-                    "dssim2_cam10"):
+                    "dssim2_cam10", "dynamic_psnr", "dynamic_psnr_cam10"):
             self.assertIn(col, table[0])
+        # The dynamic-region PSNR reaches the table from `atex eval --json` (the fake's: 4 dB under the PSNR).
+        for r in table:
+            if r["status"] == "ok":
+                self.assertAlmostEqual(float(r["dynamic_psnr"]), float(r["psnr"]) - 4.0, places=4)
 
         calls = len(self.calls())
         rc, stdout, stderr = self.matrix()

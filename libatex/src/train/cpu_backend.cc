@@ -176,8 +176,18 @@ class CpuBackend final : public Backend {
       const TexturePool* textures = textured ? &*state_.textures : nullptr;
       ATEX_ASSIGN_OR_RETURN(RenderOutput out, RenderForward<float>(camera, *rendered_gaussians, textures, settings));
       std::vector<float> grad_image(out.color.size());
-      const double loss = PhotometricLoss<float>(out.color.data(), target.pixels.data(), camera.width,
+      // The camera's colour correction acts on a copy: the backward pass needs the render itself.
+      std::vector<float> corrected;
+      const std::vector<float>* compared = &out.color;
+      const size_t pixels = size_t(camera.width) * camera.height;
+      if (!view.colour.IsIdentity()) {
+        corrected = out.color;
+        view.colour.Apply(corrected.data(), pixels);
+        compared = &corrected;
+      }
+      const double loss = PhotometricLoss<float>(compared->data(), target.pixels.data(), camera.width,
                                                  camera.height, request.lambda_dssim, grad_image.data());
+      if (!view.colour.IsIdentity()) view.colour.ScaleGradient(grad_image.data(), pixels);
       photometric += loss / batch;
       for (float& g : grad_image) g /= batch;
       // A NaN/Inf in the loss or dL/dimage (e.g. a corrupt target frame) is reported as a
@@ -189,11 +199,11 @@ class CpuBackend final : public Backend {
         return result;
       }
       double sse = 0;
-      for (size_t k = 0; k < out.color.size(); ++k) {
-        const double d = double(out.color[k]) - target.pixels[k];
+      for (size_t k = 0; k < compared->size(); ++k) {
+        const double d = double((*compared)[k]) - target.pixels[k];
         sse += d * d;
       }
-      const double mse = sse / out.color.size();
+      const double mse = sse / compared->size();
       result.view_psnr.push_back(mse > 0 ? -10.0 * std::log10(mse) : 99.0);
 
       RenderGradients rgrads;

@@ -1,4 +1,7 @@
 // JSON forms of training and evaluation results.
+#include <cmath>
+#include <map>
+
 #include "atex/container.h"
 #include "atex/train/trainer.h"
 
@@ -8,12 +11,25 @@ static nlohmann::json MetricsToJson(const ImageMetrics& m) {
   return {{"psnr", m.psnr}, {"ssim", m.ssim}, {"dssim1", m.dssim1}, {"dssim2", m.dssim2}, {"l1", m.l1}};
 }
 
+// A finite number, or null (no dynamic region there).
+static nlohmann::json NumberOrNull(double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); }
+
 nlohmann::json EvalToJson(const EvalResult& eval) {
   nlohmann::json views = nlohmann::json::array();
+  // Per camera: the dynamic-region PSNR's mean over the views that have one, and the region's share.
+  std::map<int, std::pair<double, int>> dynamic_per_camera;
+  std::map<int, double> dynamic_fraction;
   for (const auto& v : eval.views) {
     nlohmann::json j = MetricsToJson(v.metrics);
     j["camera"] = v.camera_id;
     j["timestep"] = v.timestep;
+    j["dynamic_psnr"] = NumberOrNull(v.dynamic_psnr);
+    if (std::isfinite(v.dynamic_psnr)) {
+      auto& [sum, n] = dynamic_per_camera[v.camera_id];
+      sum += v.dynamic_psnr;
+      ++n;
+      dynamic_fraction[v.camera_id] = v.dynamic_fraction;
+    }
     views.push_back(std::move(j));
   }
   // Per camera: mean over its timesteps (the benchmark tables report cameras).
@@ -35,9 +51,16 @@ nlohmann::json EvalToJson(const EvalResult& eval) {
     nlohmann::json j = MetricsToJson(m);
     j["camera"] = camera;
     j["views"] = entry.second;
+    auto dynamic = dynamic_per_camera.find(camera);
+    j["dynamic_psnr"] = dynamic == dynamic_per_camera.end() ? nlohmann::json(nullptr)
+                                                            : nlohmann::json(dynamic->second.first / dynamic->second.second);
+    j["dynamic_fraction"] = dynamic == dynamic_per_camera.end() ? 0.0 : dynamic_fraction[camera];
     cameras.push_back(std::move(j));
   }
-  return {{"mean", MetricsToJson(eval.mean)}, {"cameras", cameras}, {"views", views}};
+  nlohmann::json mean = MetricsToJson(eval.mean);
+  mean["dynamic_psnr"] = NumberOrNull(eval.dynamic_psnr);
+  mean["dynamic_views"] = eval.dynamic_views;
+  return {{"mean", mean}, {"cameras", cameras}, {"views", views}};
 }
 
 nlohmann::json SummaryToJson(const TrainSummary& s) {

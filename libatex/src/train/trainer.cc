@@ -8,6 +8,7 @@
 #include "atex/deform.h"
 #include "atex/init.h"
 #include "atex/render.h"
+#include "atex/train/camera_colours.h"
 #include "atex/train/checkpoint.h"
 #include "atex/train/schedule.h"
 
@@ -53,46 +54,6 @@ Asset AssetFromState(const ModelState& state, const Metadata& metadata) {
   return asset;
 }
 
-StatusOr<EvalResult> Evaluate(const Dataset& dataset, Backend& backend, const std::vector<View>& views,
-                              const RenderRequest& request) {
-  EvalResult result;
-  result.views.resize(views.size());
-  // Renders come from the backend one by one; the CPU metrics (SSIM dominates) of a chunk run in parallel.
-  constexpr size_t kChunk = 32;
-  for (size_t begin = 0; begin < views.size(); begin += kChunk) {
-    const size_t end = std::min(views.size(), begin + kChunk);
-    std::vector<Image> rendered(end - begin);
-    std::vector<std::shared_ptr<const Image>> targets(end - begin);
-    for (size_t i = begin; i < end; ++i) {
-      ATEX_ASSIGN_OR_RETURN(rendered[i - begin], backend.Render(views[i].camera, request));
-      ATEX_ASSIGN_OR_RETURN(targets[i - begin], dataset.LoadImage(views[i]));
-    }
-    std::vector<Status> errors(end - begin);
-#pragma omp parallel for schedule(dynamic, 1)
-    for (long long k = 0; k < static_cast<long long>(end - begin); ++k) {
-      for (float& v : rendered[k].pixels) v = std::clamp(v, 0.0f, 1.0f);
-      StatusOr<ImageMetrics> m = CompareImages(rendered[k], *targets[k]);
-      if (!m.ok()) {
-        errors[k] = m.status();
-        continue;
-      }
-      const View& view = views[begin + k];
-      result.views[begin + k] = {view.camera_id, view.timestep, *m};
-    }
-    for (const Status& e : errors) ATEX_RETURN_IF_ERROR(e);
-  }
-  const double n = static_cast<double>(std::max<size_t>(1, result.views.size()));
-  for (const auto& v : result.views) {
-    result.mean.psnr += v.metrics.psnr / n;
-    result.mean.ssim += v.metrics.ssim / n;
-    result.mean.dssim1 += v.metrics.dssim1 / n;
-    result.mean.dssim2 += v.metrics.dssim2 / n;
-    result.mean.l1 += v.metrics.l1 / n;
-    result.mean.mse += v.metrics.mse / n;
-  }
-  return result;
-}
-
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -136,6 +97,7 @@ class Loop {
       lr_scale_ = cp.trainer.value("lr_scale", 1.0);
       total_steps_ = cp.trainer.value("total_steps", 0);
       ATEX_RETURN_IF_ERROR(backend_.Load(cp.state));
+      ATEX_RETURN_IF_ERROR(LoadCameraColours(metadata_));
       Event(StrCat("resumed from ", options_.resume_dir, " at ", PhaseName(start_phase), " step ", start_step));
     } else if (options_.stages & kStage1) {
       ATEX_RETURN_IF_ERROR(InitializeStage1());
@@ -146,6 +108,7 @@ class Loop {
       }
       metadata_ = initial->metadata;
       ATEX_RETURN_IF_ERROR(backend_.Load(StateFromAsset(*initial)));
+      ATEX_RETURN_IF_ERROR(LoadCameraColours(metadata_));
       start_phase = Phase::kTextures;
     }
 
@@ -398,13 +361,14 @@ class Loop {
       for (size_t index : picks) {
         const View& v = train[index];
         const uint64_t key = static_cast<uint64_t>(index) + 1;
+        const ColourAffine& colour = colours_.For(v.camera_id);
         if (backend_.HasTarget(key)) {  // on the device already: no host decode
-          views.push_back({&v.camera, nullptr, key});
+          views.push_back({&v.camera, nullptr, key, colour});
           continue;
         }
         ATEX_ASSIGN_OR_RETURN(auto image, data_.LoadImage(v));
         images.push_back(image);
-        views.push_back({&v.camera, images.back().get(), key});
+        views.push_back({&v.camera, images.back().get(), key, colour});
       }
       ATEX_ASSIGN_OR_RETURN(StepResult result, backend_.Step(request, views));
       if (!result.finite) {
@@ -429,6 +393,7 @@ class Loop {
       ++logged;
 
       ATEX_RETURN_IF_ERROR(AfterStep(phase, step, &gaussians));
+      ATEX_RETURN_IF_ERROR(MaybeFitCameraColours(phase, step, request.active_sh_degree));
       const bool last = step + 1 == total;
       if ((step + 1) % std::max(1, options_.log_every) == 0 || last) {
         TrainProgress progress{PhaseName(phase), step + 1, total, loss_sum / logged, psnr_sum / logged, gaussians, ""};
@@ -455,7 +420,8 @@ class Loop {
         return Status::Ok();
       }
       if (config_.eval_every > 0 && (step + 1) % config_.eval_every == 0 && !last && !data_.test_views().empty()) {
-        ATEX_ASSIGN_OR_RETURN(EvalResult eval, Evaluate(data_, backend_, ProgressEvalViews(), EvalRequest(phase)));
+        ATEX_ASSIGN_OR_RETURN(EvalResult eval, Evaluate(data_, backend_, ProgressEvalViews(), EvalRequest(phase),
+                                                            {.dynamic_region = false}));
         Event(StrCat(PhaseName(phase), " step ", step + 1, ": test PSNR ", eval.mean.psnr, " SSIM ", eval.mean.ssim));
       }
     }
@@ -538,6 +504,32 @@ class Loop {
     return Status::Ok();
   }
 
+  // Per-camera colour corrections (TrainConfig::camera_colour): fitted at stage-1 steps
+  // first_step, first_step + interval, ...; stage 2 keeps the last fit.
+  Status MaybeFitCameraColours(Phase phase, int step, int active_sh_degree) {
+    const CameraColourConfig& c = config_.camera_colour;
+    if (!c.enabled || phase == Phase::kTextures) return Status::Ok();
+    const int stage1_step = (phase == Phase::kCoarse ? 0 : config_.stage1.coarse_iterations) + step + 1;
+    const bool due = stage1_step == c.first_step ||
+                     (c.interval > 0 && stage1_step > c.first_step && (stage1_step - c.first_step) % c.interval == 0);
+    if (!due) return Status::Ok();
+    RenderRequest request = EvalRequest(phase);
+    request.active_sh_degree = active_sh_degree;
+    ATEX_RETURN_IF_ERROR(colours_.Fit(data_, backend_, request, c));
+    Event(StrCat(PhaseName(phase), " step ", step + 1, ": camera colours fitted (", colours_.Summary(), ")"));
+    return Status::Ok();
+  }
+
+  // The corrections a stage-1 run stored in its asset or checkpoint (none: identity).
+  Status LoadCameraColours(const Metadata& metadata) {
+    if (!metadata.extra.contains("camera_colour")) return Status::Ok();
+    StatusOr<CameraColours> loaded = CameraColours::FromJson(metadata.extra["camera_colour"]);
+    if (!loaded.ok()) return MakeError(loaded.status().code(), "metadata.camera_colour: ", loaded.status().message());
+    colours_ = std::move(*loaded);
+    if (!colours_.empty()) Event(StrCat("camera colours from the model: ", colours_.Summary()));
+    return Status::Ok();
+  }
+
   RenderRequest EvalRequest(Phase phase) const {
     RenderRequest r;
     r.active_sh_degree = config_.stage1.sh_degree;
@@ -557,6 +549,7 @@ class Loop {
     // starts from a stage-1 asset whose metadata says "none").
     Metadata metadata = metadata_;
     metadata.texture_mode = state.textures ? std::string(TextureModeName(config_.stage2.textures)) : "none";
+    if (!colours_.empty()) metadata.extra["camera_colour"] = colours_.ToJson();
     return WriteCheckpoint(options_.checkpoint_dir, state, metadata, trainer);
   }
 
@@ -586,6 +579,8 @@ class Loop {
                                   {"dataset", data_.name()},
                                   {"seed", config_.seed},
                                   {"config", ConfigToJson(config_)}};
+    // Training-only per-camera colour corrections: test views render without them.
+    if (!colours_.empty()) metadata_.extra["camera_colour"] = colours_.ToJson();
     // Bounds of the final canonical positions.
     if (state.gaussians.size() > 0) {
       metadata_.bounds_min = {1e30f, 1e30f, 1e30f};
@@ -617,7 +612,8 @@ class Loop {
     summary_.asset.stats = std::move(gs);
     if (!data_.test_views().empty()) {
       const Phase last = textured ? Phase::kTextures : Phase::kFine;
-      ATEX_ASSIGN_OR_RETURN(summary_.test, Evaluate(data_, backend_, data_.test_views(), EvalRequest(last)));
+      ATEX_ASSIGN_OR_RETURN(summary_.test, Evaluate(data_, backend_, data_.test_views(), EvalRequest(last),
+                                                     {.dynamic_region = true}));
     }
     summary_.peak_memory_bytes = backend_.PeakMemoryBytes();
     return std::move(summary_);
@@ -638,6 +634,7 @@ class Loop {
   double extent_ = 1.0;
   std::vector<Camera> observing_cameras_;  // one per training camera (FirstTimestepViews), on first use
   std::vector<View> progress_eval_views_;  // ProgressEvalViews(), chosen once
+  CameraColours colours_;                  // per training camera (config_.camera_colour)
   double lr_scale_ = 1.0;
   Clock::time_point run_start_ = Clock::now();
   int64_t total_steps_ = 0;  // steps over all phases: drives the camera schedule

@@ -26,6 +26,7 @@
 #include "atex/model.h"
 #include "atex/render.h"  // kDefaultNearPlane
 #include "atex/status.h"
+#include "atex/train/colour_correction.h"
 
 namespace atex::train {
 
@@ -69,6 +70,9 @@ struct TrainView {
   const Camera* camera = nullptr;
   const Image* target = nullptr;  // null only where the backend's HasTarget(image_key) said true
   uint64_t image_key = 0;  // stable id of the target image (lets a backend cache it on the device)
+  // The view's camera colour correction (colour_correction.h): the loss compares the target
+  // with gain · rendered + offset. Identity: the render itself.
+  ColourAffine colour;
 };
 
 struct StepRequest {

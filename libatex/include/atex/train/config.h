@@ -133,10 +133,24 @@ struct Stage2Config {
   // [choice] the 4DGS parameters continue at stage 1's final learning rates.
 };
 
+// Per-training-camera colour correction (atex/train/colour_correction.h, camera_colours.h).
+// [not in 4DGaussians; Dynamic 3D Gaussians learn per-camera scale and offset on Panoptic]
+struct CameraColourConfig {
+  bool enabled = false;
+  // Fitted from the current model at this stage-1 step (coarse steps count first; SH degree 0
+  // until sh_increase_interval, so a camera's colour cast cannot yet hide in view-dependent
+  // colour), then every `interval` steps of stage 1 (0: once). Stage 2 keeps the last fit.
+  int first_step = 500;
+  int interval = 2000;
+  int views_per_camera = 3;  // frames per camera of each fit, evenly spaced in time
+  double keep = 0.9;         // the fit's trimmed share of pixels (FitColourAffine)
+};
+
 struct TrainConfig {
   uint64_t seed = 6666;
   Stage1Config stage1;
   Stage2Config stage2;
+  CameraColourConfig camera_colour;
   std::array<float, 3> background{0, 0, 0};
   float near_plane = kDefaultNearPlane;  // atex/render.h
   int eval_every = 1000;        // test-view evaluation during training (0 = only at the end)

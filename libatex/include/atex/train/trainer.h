@@ -8,11 +8,13 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
 
 #include "atex/dataset.h"
+#include "atex/dynamic_region.h"
 #include "atex/metrics.h"
 #include "atex/model.h"
 #include "atex/status.h"
@@ -55,10 +57,24 @@ struct ViewMetrics {
   int camera_id = -1;
   int timestep = -1;
   ImageMetrics metrics;
+  // PSNR over the camera's dynamic region (atex/dynamic_region.h); NaN where the camera
+  // has one frame (D-NeRF's moving camera), an empty region, or the evaluation skipped it.
+  double dynamic_psnr = std::numeric_limits<double>::quiet_NaN();
+  double dynamic_fraction = 0;  // share of the camera's pixels in its dynamic region
 };
 struct EvalResult {
   std::vector<ViewMetrics> views;
   ImageMetrics mean;  // unweighted mean over views
+  // Mean of the finite per-view dynamic_psnr values (NaN if none) and how many there were.
+  double dynamic_psnr = std::numeric_limits<double>::quiet_NaN();
+  size_t dynamic_views = 0;
+};
+
+struct EvalOptions {
+  // Also measure the dynamic-region PSNR. The region of a camera comes from all of the
+  // dataset's frames of that camera (both splits), whichever subset `views` is.
+  bool dynamic_region = true;
+  double dynamic_threshold = kDefaultDynamicThreshold;  // τ of atex/dynamic_region.h
 };
 
 struct TrainSummary {
@@ -82,7 +98,7 @@ StatusOr<TrainSummary> Train(const Dataset& dataset, Backend& backend, const Tra
 // Renders `views` with the backend's current model and compares with the dataset's
 // images (renders clamped to [0, 1] first, as 3DGS evaluates).
 StatusOr<EvalResult> Evaluate(const Dataset& dataset, Backend& backend, const std::vector<View>& views,
-                              const RenderRequest& request);
+                              const RenderRequest& request, const EvalOptions& options = {});
 
 // The scene extent 3DGS uses for learning rates and densification: 1.1 × the largest
 // distance of a training camera centre from their mean.

@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Issue 20 GPU calls on a machine of one or more GPUs (nvidia-h100-x2 in the issue's runs):
+#   bench/device/issue20.sh start  OUT JOB   build the CLI and the backend parity test, start JOB of
+#                                            parallel_session.sh (base | init) in the background, run
+#                                            the parity test beside it on the last GPU, follow the job
+#   bench/device/issue20.sh wait   OUT JOB   follow the job until it ends or the call's time is up
+#   bench/device/issue20.sh sheets OUT JOB   contact-sheet frames (test cameras 0 and 10, every 3rd
+#                                            frame) of every stage-1 model of the job, in OUT/frames.tgz
+# Each call's OUT gets results.tgz and progress.txt (parallel_session.sh); `start` also parity.log.
+source "$(dirname "$0")/common.sh"
+phase=$1 out=$2 job=${3:-base}
+mkdir -p "$out"
+export CALL_SECONDS=${CALL_SECONDS:-500} JOBS=$job PARITY=0
+case $phase in
+  start)
+    build_tree . "$BUILD" "$(nproc)" atex_cli backend_parity_test 2>&1 | tail -2
+    nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader | tee "$out/gpu.txt"
+    last=$(nvidia-smi --query-gpu=index --format=csv,noheader | tail -1)
+    (CUDA_VISIBLE_DEVICES=$last ctest --test-dir "$BUILD" -R backend_parity --output-on-failure -V \
+       > "$out/parity.log" 2>&1; grep -E "tests passed|tests failed|camera colours" "$out/parity.log" \
+       > "$out/parity_summary.txt") &
+    bench/device/parallel_session.sh start "$out"
+    wait
+    cat "$out/parity_summary.txt" 2>/dev/null || true
+    ;;
+  wait)
+    bench/device/parallel_session.sh wait "$out"
+    ;;
+  sheets)
+    for model in out/"$job"/models/basketball/*/s*/stage1.atex; do
+      dir=$(dirname "$model")
+      name=$(echo "$dir" | awk -F/ '{print $(NF-1) "_" $NF}')
+      "$atex" eval "$model" --data "$bb" --json > "$dir/stage1.eval.json"
+      bench/device/contact_frames.sh "$model" "$dir/stage1.eval.json" "out/frames/$name"
+      cp "$dir/stage1.eval.json" "out/frames/$name/"
+    done
+    tar czf "$out/frames.tgz" -C out frames
+    ;;
+  *) echo "unknown phase $phase" >&2; exit 2 ;;
+esac
