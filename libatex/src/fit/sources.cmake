@@ -1,10 +1,15 @@
 # Module 'fit': the budget fitter (atex/fit.h, docs/fit.md). Sources appended to
 # libatex; tests registered in atex_fit_tests().
 list(APPEND ATEX_LIB_SOURCES
+  ${CMAKE_CURRENT_LIST_DIR}/apply_plan.cc
+  ${CMAKE_CURRENT_LIST_DIR}/budget.cc
   ${CMAKE_CURRENT_LIST_DIR}/byte_size.cc
   ${CMAKE_CURRENT_LIST_DIR}/levers.cc
+  ${CMAKE_CURRENT_LIST_DIR}/moves.cc
   ${CMAKE_CURRENT_LIST_DIR}/plan.cc
   ${CMAKE_CURRENT_LIST_DIR}/probes.cc
+  ${CMAKE_CURRENT_LIST_DIR}/refill.cc
+  ${CMAKE_CURRENT_LIST_DIR}/report.cc
   ${CMAKE_CURRENT_LIST_DIR}/texture_shrink.cc)
 function(atex_fit_tests)
   set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})

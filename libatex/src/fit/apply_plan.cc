@@ -1,0 +1,107 @@
+// Applying a plan to a budget (fit.h): replay, bisection of the last divisible move, and the
+// refill (refill.cc) below an indivisible one.
+#include <numeric>
+
+#include "atex/fit.h"
+#include "plan_state.h"
+
+namespace atex::fit {
+namespace internal {
+
+// The state after moves[begin, end) applied to `start`; moves[k] (if in range) with its count
+// replaced by `count_k` (0: skipped).
+StatusOr<State> ApplyRange(State start, const Plan& plan, const std::vector<Move>& moves, size_t begin, size_t end,
+                           size_t k, uint64_t count_k) {
+  for (size_t i = begin; i < end; ++i) {
+    Move m = moves[i];
+    if (i == k) {
+      if (count_k == 0) continue;
+      m.count = count_k;
+    }
+    ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &start.asset, &start.write, &start.kept));
+  }
+  return start;
+}
+
+State InitialState(const Asset& asset, const WriteOptions& write) {
+  State s{asset, write, {}};
+  s.kept.resize(asset.gaussians.size());
+  std::iota(s.kept.begin(), s.kept.end(), 0u);
+  return s;
+}
+
+}  // namespace internal
+
+using internal::State;
+using internal::Stopwatch;
+using internal::RefillSlack;
+
+StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes) {
+  Stopwatch whole;
+  State state{asset, write, {}};
+  state.kept.resize(asset.gaussians.size());
+  std::iota(state.kept.begin(), state.kept.end(), 0u);
+  Fitted out;
+  // The searches below encode many states that differ from each other in a few chunks.
+  EncodeCache cache;
+  const auto encode = [&cache](const State& s) { return EncodeAsset(s.asset, s.write, &cache); };
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, encode(state));
+  if (bytes.size() > budget_bytes) {
+    size_t j = 0;
+    while (j < plan.moves.size() && plan.moves[j].bytes_after > budget_bytes) ++j;
+    if (j == plan.moves.size()) {
+      const uint64_t reached = plan.moves.empty() ? bytes.size() : plan.moves.back().bytes_after;
+      return MakeError(StatusCode::kOutOfRange, "the fit plan reaches ", reached, " bytes at best, above the budget of ",
+                       budget_bytes, " bytes");
+    }
+    for (size_t k = 0; k < j; ++k) {
+      ATEX_RETURN_IF_ERROR(ApplyMove(plan.moves[k], plan.prune_order, &state.asset, &state.write, &state.kept));
+      out.moves.push_back(plan.moves[k]);
+    }
+    Move last = plan.moves[j];
+    if (last.divisible() && last.count > 1) {
+      // Smallest count that fits (the full count is known to fit).
+      uint64_t lo = 1, hi = last.count;
+      while (lo < hi) {
+        const uint64_t mid = lo + (hi - lo) / 2;
+        State trial = state;
+        Move m = last;
+        m.count = mid;
+        ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &trial.asset, &trial.write, &trial.kept));
+        ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, encode(trial));
+        if (trial_bytes.size() <= budget_bytes) {
+          hi = mid;
+        } else {
+          lo = mid + 1;
+        }
+      }
+      last.count = hi;
+    }
+    ATEX_RETURN_IF_ERROR(ApplyMove(last, plan.prune_order, &state.asset, &state.write, &state.kept));
+    ATEX_ASSIGN_OR_RETURN(bytes, encode(state));
+    last.bytes_after = bytes.size();
+    out.moves.push_back(last);
+    if (!last.divisible()) {
+      // An indivisible last move (an encoding, the SH degree, the grid) can land far below the
+      // budget; give the slack back by undoing moves before it, latest first.
+      Stopwatch refill_clock;
+      ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes, &cache));
+      out.refill_seconds = refill_clock.Lap();
+    }
+  }
+  if (bytes.size() > budget_bytes) {
+    // Replaying the plan must reproduce its sizes exactly; anything else is a bug, not a fit.
+    return MakeError(StatusCode::kInternal, "fit: replaying the plan gave ", bytes.size(),
+                     " bytes, above the budget of ", budget_bytes);
+  }
+  ReadOptions read;
+  read.read_stats = false;
+  ATEX_ASSIGN_OR_RETURN(out.asset, DecodeAsset(bytes.data(), bytes.size(), read));
+  out.bytes = std::move(bytes);
+  out.write = state.write;
+  out.kept = std::move(state.kept);
+  out.apply_seconds = whole.Lap();
+  return out;
+}
+
+}  // namespace atex::fit

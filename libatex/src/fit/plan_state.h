@@ -1,0 +1,52 @@
+// The fitter's internal state shared by the search (plan.cc), the application of a plan
+// (apply_plan.cc) and the refill (refill.cc). Not part of the public API.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <numeric>
+#include <vector>
+
+#include "atex/fit.h"
+
+namespace atex::fit::internal {
+
+// Seconds since construction or the previous Lap.
+class Stopwatch {
+ public:
+  double Lap() {
+    const auto now = std::chrono::steady_clock::now();
+    const double seconds = std::chrono::duration<double>(now - last_).count();
+    last_ = now;
+    return seconds;
+  }
+
+ private:
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
+
+struct State {
+  Asset asset;
+  WriteOptions write;
+  std::vector<uint32_t> kept;
+};
+
+State InitialState(const Asset& asset, const WriteOptions& write);
+
+// The state after moves[begin, end) applied to `start`; moves[k] (if in range) with its count
+// replaced by `count_k` (0: skipped).
+StatusOr<State> ApplyRange(State start, const Plan& plan, const std::vector<Move>& moves, size_t begin, size_t end,
+                           size_t k, uint64_t count_k);
+
+// After an indivisible last move: gives the slack below the budget back by undoing the moves
+// before it, latest first (the plan took moves cheapest first, so the latest ones did the
+// most damage per byte). A divisible move's count is lowered to the smallest that still
+// fits; when even count 0 fits (the move is undone entirely and slack remains), the move is
+// dropped and the next earlier move is tried; when it is needed whole, or only partly undone,
+// the budget binds there and the refill stops. An indivisible move (an encoding, the SH
+// degree, the grid) is undone whole when the output without it still fits and grows, else
+// skipped. Every state taken was encoded and fits, so the output stays within the budget.
+Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
+                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache);
+
+}  // namespace atex::fit::internal
