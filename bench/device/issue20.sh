@@ -33,6 +33,9 @@ case $phase in
       "$atex" eval "$model" --data "$bb" --json > "$dir/stage1.eval.json"
       bench/device/contact_frames.sh "$model" "$dir/stage1.eval.json" "out/frames/$name"
       cp "$dir/stage1.eval.json" "out/frames/$name/"
+      for near in 0.5 1 2; do
+        "$atex" eval "$model" --data "$bb" --near-plane $near --json > "out/frames/$name/near$near.eval.json"
+      done
     done
     tar czf "$out/frames.tgz" -C out frames
     ;;

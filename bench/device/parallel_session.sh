@@ -13,7 +13,7 @@
 #   seeds: bench/configs/panoptic_seeds.json on all GPUs (out/seeds), with FPS
 #   protocols: bench/configs/panoptic_budget_protocols.json on all GPUs (out/protocols), no FPS
 #   base:    bench/configs/panoptic_base.json on all GPUs (out/base), with FPS (issue 20)
-#   init:    bench/configs/panoptic_init.json on all GPUs (out/init), with FPS (issue 20)
+#   base2:   bench/configs/panoptic_base2.json on all GPUs (out/base2), no FPS (issue 20)
 # With .oldsrc present, `start` also builds it into build-old in the background, for a later
 # bench/device/raster_ab.sh on the models these jobs train (AB_MODEL_DIR).
 # The two share GPUs through run_matrix's per-GPU lock files: one cell per GPU at a time.
@@ -48,7 +48,7 @@ snapshot() {
     nvidia-smi --query-gpu=index,utilization.gpu,memory.used --format=csv,noheader || true
   } > "$out/progress.txt"
   tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic out/stress out/sweep out/same_time \
-    out/fast_raster out/seeds out/protocols out/base out/init out/*.log out/*.rc \
+    out/fast_raster out/seeds out/protocols out/base out/base2 out/*.log out/*.rc \
     2>/dev/null || true
 }
 
@@ -68,7 +68,7 @@ case $phase in
         seeds) launch seeds bench/configs/panoptic_seeds.json out/seeds "$gpus" ;;
         protocols) launch protocols bench/configs/panoptic_budget_protocols.json out/protocols "$gpus" --skip-fps ;;
         base) launch base bench/configs/panoptic_base.json out/base "$gpus" ;;
-        init) launch init bench/configs/panoptic_init.json out/init "$gpus" ;;
+        base2) launch base2 bench/configs/panoptic_base2.json out/base2 "$gpus" --skip-fps ;;
         *) echo "unknown job $j" >&2; exit 2 ;;
       esac
     done
