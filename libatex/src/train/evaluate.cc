@@ -104,7 +104,7 @@ StatusOr<EvalResult> Evaluate(const Dataset& dataset, Backend& backend, const st
     result.mean.dssim2 += v.metrics.dssim2 / n;
     result.mean.l1 += v.metrics.l1 / n;
     result.mean.mse += v.metrics.mse / n;
-    if (std::isfinite(v.dynamic_psnr)) {
+    if (!std::isnan(v.dynamic_psnr)) {  // +infinity (a perfect region) counts, as in the PSNR mean
       dynamic_sum += v.dynamic_psnr;
       ++result.dynamic_views;
     }

@@ -24,7 +24,7 @@ nlohmann::json EvalToJson(const EvalResult& eval) {
     j["camera"] = v.camera_id;
     j["timestep"] = v.timestep;
     j["dynamic_psnr"] = NumberOrNull(v.dynamic_psnr);
-    if (std::isfinite(v.dynamic_psnr)) {
+    if (!std::isnan(v.dynamic_psnr)) {
       auto& [sum, n] = dynamic_per_camera[v.camera_id];
       sum += v.dynamic_psnr;
       ++n;

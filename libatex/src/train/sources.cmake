@@ -16,7 +16,7 @@ function(atex_train_tests)
   set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
   atex_add_test(NAME train_test LIBS atex SOURCES
     ${dir}/checkpoint_test.cc ${dir}/config_test.cc ${dir}/densify_test.cc ${dir}/schedule_test.cc ${dir}/texture_growth_test.cc
-    ${dir}/colour_correction_test.cc ${PROJECT_SOURCE_DIR}/libatex/src/render/render_test_util.cc)
+    ${dir}/colour_correction_test.cc ${dir}/camera_colours_test.cc ${PROJECT_SOURCE_DIR}/libatex/src/render/render_test_util.cc)
   # The loop on the real tiny lego (CPU backend): a few minutes, its own executable so that
   # CTest runs it beside the others.
   atex_add_test(NAME train_lego_test LIBS atex SOURCES ${dir}/trainer_test.cc TIMEOUT 2400)

@@ -65,7 +65,7 @@ struct ViewMetrics {
 struct EvalResult {
   std::vector<ViewMetrics> views;
   ImageMetrics mean;  // unweighted mean over views
-  // Mean of the finite per-view dynamic_psnr values (NaN if none) and how many there were.
+  // Mean of the per-view dynamic_psnr values that are not NaN (NaN if none) and how many there were.
   double dynamic_psnr = std::numeric_limits<double>::quiet_NaN();
   size_t dynamic_views = 0;
 };
