@@ -1,4 +1,5 @@
-// Initial Gaussians for a dataset that has no point cloud.
+// Initial Gaussians: from the dataset's images (visual hull, view volume, multi-view
+// stereo), from an external point cloud, or a random cube.
 //
 // Methods (InitMethod):
 //   kVisualHull   Carve a voxel grid with the foreground masks of the training
@@ -34,11 +35,26 @@
 //                 D-NeRF synthetic scenes as 4DGaussians uses) with uniformly
 //                 random colours: the default for monocular datasets (D-NeRF,
 //                 the lego .npz), whose single moving camera cannot carve a hull.
+//   kMvs          Multi-view stereo (atex/mvs.h) on the first-timestep training
+//                 images: plane sweep with windowed ZNCC, depth fusion by geometric
+//                 consistency, voxel subsampling to mvs_points. Covers every textured
+//                 surface the cameras see (floor, walls, people), with its colours.
+//                 Depth range: the dataset's depth bounds, else [mvs_near·D,
+//                 mvs_far·D] with D the median camera distance to the scene centre.
+//                 Multi-view datasets only (kInvalidArgument otherwise).
+//   kMvsAndHull   kMvs plus the visual hull (hull_points), for people that the
+//                 stereo misses (thin limbs, low texture). Needs masks.
+//   kFile         An external point cloud (point_cloud_path: PLY, COLMAP
+//                 points3D.txt/.bin; atex/point_cloud.h), at most file_points of
+//                 them (an evenly spaced subset when larger; 0 = all). Points without
+//                 colours get the mean colour of the pixels they project to.
 //   kAuto         kHullAndViewVolume if the dataset is multi-view with masks,
 //                 kViewVolume if multi-view without masks (N3DV), else kRandomCube.
 //
 // Every Gaussian gets: colour = the mean of the pixels it projects to in the
-// first-timestep training images (hull and volume points; random for the cube),
+// first-timestep training images (hull and volume points, file points without
+// colours; the fused colour for stereo points, the file's colour where it has one;
+// random for the cube),
 // SH DC = (colour − 0.5)/C0 with higher coefficients zero; log-scale = log of
 // the RMS distance to its 3 nearest neighbours (3DGS; squared distances clamped
 // below at 1e-7), the same on all three axes; rotation identity (1, 0, 0, 0);
@@ -53,13 +69,14 @@
 
 #include "atex/dataset.h"
 #include "atex/model.h"
+#include "atex/mvs.h"
 #include "atex/status.h"
 
 namespace atex {
 
-enum class InitMethod { kAuto, kVisualHull, kViewVolume, kHullAndViewVolume, kRandomCube };
+enum class InitMethod { kAuto, kVisualHull, kViewVolume, kHullAndViewVolume, kRandomCube, kMvs, kMvsAndHull, kFile };
 
-// "auto", "hull", "volume", "hull+volume", "cube".
+// "auto", "hull", "volume", "hull+volume", "cube", "mvs", "mvs+hull", "file".
 const char* InitMethodName(InitMethod method);
 StatusOr<InitMethod> ParseInitMethod(const std::string& name);
 
@@ -78,6 +95,15 @@ struct InitOptions {
   double volume_far = 2.5;                 // farthest depth, in median camera distances (no depth bounds)
   bool volume_uniform_depth = true;        // false: uniform in disparity (denser near the cameras)
   double volume_max_colour_spread = 0.03;  // photo-consistency: reject points whose colours spread more (0 = off)
+  // Multi-view stereo. mvs.near_depth/far_depth are set from the scene (below); the
+  // other fields of `mvs` are used as given, target_points = mvs_points.
+  int mvs_points = 30000;
+  double mvs_near = 0.2;  // in median camera distances D (no depth bounds)
+  double mvs_far = 2.5;
+  MvsOptions mvs;
+  // External point cloud.
+  std::string point_cloud_path;
+  int file_points = 0;    // 0 = every point of the file
   // Random cube.
   float cube_half_extent = 1.3f;
   int cube_points = 100000;
@@ -93,6 +119,8 @@ struct InitReport {
   std::array<float, 3> hull_box_min{0, 0, 0}, hull_box_max{0, 0, 0};
   size_t hull_points = 0, volume_points = 0, cube_points = 0;
   size_t volume_candidates = 0;  // view-volume candidates drawn (accepted or not)
+  size_t mvs_points = 0, file_points = 0;
+  MvsReport mvs;                 // filled by kMvs / kMvsAndHull
   std::array<double, 3> scene_center{0, 0, 0};  // nearest point to the optical axes (multi-view)
   double camera_distance = 0;                    // median camera distance to scene_center
 };

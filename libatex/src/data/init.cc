@@ -7,6 +7,8 @@
 #include <cmath>
 #include <memory>
 
+#include "data/init_sources.h"
+
 namespace atex {
 namespace {
 
@@ -223,11 +225,13 @@ Status ValidateInitOptions(const InitOptions& o) {
       o.hull_keep_fraction > 1 || o.hull_points < 0 || o.volume_points < 0 || o.cube_points < 0 ||
       o.volume_attempts_per_point < 1 || !(o.volume_far > 0.1) || !(o.volume_max_colour_spread >= 0) ||
       !(o.cube_half_extent > 0) || !(o.initial_opacity > 0 && o.initial_opacity < 1) || o.knn_neighbors < 1 ||
-      o.knn_neighbors > 16) {
+      o.knn_neighbors > 16 || o.mvs_points < 0 || !(o.mvs_near > 0) || !(o.mvs_far > o.mvs_near) ||
+      o.file_points < 0) {
     return MakeError(StatusCode::kInvalidArgument,
                      "init: options out of range (min_views >= 1, hull_resolution 4..1024, hull_keep_fraction (0, 1], "
                      "point counts >= 0, volume_attempts_per_point >= 1, volume_far > 0.1, "
-                     "volume_max_colour_spread >= 0, cube_half_extent > 0, initial_opacity (0, 1), knn_neighbors 1..16)");
+                     "volume_max_colour_spread >= 0, cube_half_extent > 0, initial_opacity (0, 1), knn_neighbors 1..16, "
+                     "mvs_points >= 0, 0 < mvs_near < mvs_far, file_points >= 0)");
   }
   return Status::Ok();
 }
@@ -241,17 +245,21 @@ const char* InitMethodName(InitMethod method) {
     case InitMethod::kViewVolume: return "volume";
     case InitMethod::kHullAndViewVolume: return "hull+volume";
     case InitMethod::kRandomCube: return "cube";
+    case InitMethod::kMvs: return "mvs";
+    case InitMethod::kMvsAndHull: return "mvs+hull";
+    case InitMethod::kFile: return "file";
   }
   return "?";
 }
 
 StatusOr<InitMethod> ParseInitMethod(const std::string& name) {
   for (InitMethod m : {InitMethod::kAuto, InitMethod::kVisualHull, InitMethod::kViewVolume,
-                       InitMethod::kHullAndViewVolume, InitMethod::kRandomCube}) {
+                       InitMethod::kHullAndViewVolume, InitMethod::kRandomCube, InitMethod::kMvs,
+                       InitMethod::kMvsAndHull, InitMethod::kFile}) {
     if (name == InitMethodName(m)) return m;
   }
   return MakeError(StatusCode::kInvalidArgument, "unknown init method '", name,
-                   "' (auto, hull, volume, hull+volume, cube)");
+                   "' (auto, hull, volume, hull+volume, cube, mvs, mvs+hull, file)");
 }
 
 StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOptions& options, InitReport* report) {
@@ -271,7 +279,13 @@ StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOption
                                         : InitMethod::kViewVolume;
   }
   rep.method = method;
-  const bool use_hull = method == InitMethod::kVisualHull || method == InitMethod::kHullAndViewVolume;
+  const bool use_hull = method == InitMethod::kVisualHull || method == InitMethod::kHullAndViewVolume ||
+                        method == InitMethod::kMvsAndHull;
+  const bool use_mvs = method == InitMethod::kMvs || method == InitMethod::kMvsAndHull;
+  if (use_mvs && !multi_view) {
+    return MakeError(StatusCode::kInvalidArgument, dataset.name(), ": init '", InitMethodName(method),
+                     "' needs a multi-view dataset (several cameras at one timestep)");
+  }
   const bool use_volume = method == InitMethod::kViewVolume || method == InitMethod::kHullAndViewVolume;
   Rng rng(options.seed);
   std::vector<float> positions;  // [N][3]
@@ -350,6 +364,30 @@ StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOption
         }
         ++rep.hull_points;
       }
+    }
+
+    if (use_mvs) {
+      std::vector<MvsView> views;
+      for (const CameraImages& c : cams) views.push_back({c.view->camera, c.image});
+      ATEX_ASSIGN_OR_RETURN(PointCloud cloud,
+                            MvsInitCloud(views, dataset.depth_bounds(), scene.distance, options, &rep.mvs));
+      positions.insert(positions.end(), cloud.positions.begin(), cloud.positions.end());
+      colours.insert(colours.end(), cloud.colours.begin(), cloud.colours.end());
+      rep.mvs_points = cloud.size();
+    }
+
+    if (method == InitMethod::kFile) {
+      ATEX_ASSIGN_OR_RETURN(PointCloud cloud, FileInitCloud(options));
+      for (size_t i = 0; i < cloud.size(); ++i) {
+        const double x[3] = {cloud.positions[3 * i], cloud.positions[3 * i + 1], cloud.positions[3 * i + 2]};
+        const std::array<float, 3> colour =
+            cloud.has_colours() ? std::array<float, 3>{cloud.colours[3 * i], cloud.colours[3 * i + 1],
+                                                       cloud.colours[3 * i + 2]}
+                                : MeanColour(cams, x, -1);
+        positions.insert(positions.end(), x, x + 3);
+        colours.insert(colours.end(), colour.begin(), colour.end());
+      }
+      rep.file_points = cloud.size();
     }
 
     if (use_volume) {

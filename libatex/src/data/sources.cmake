@@ -1,4 +1,5 @@
-# Module 'data': images, zip/.npy/.npz, datasets, initialisation without a point cloud.
+# Module 'data': images, zip/.npy/.npz, datasets, point clouds (PLY, COLMAP), multi-view
+# stereo, initialisation.
 list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/zip_reader.cc
   ${CMAKE_CURRENT_LIST_DIR}/zip_writer.cc
@@ -14,16 +15,25 @@ list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/dataset_dnerf.cc
   ${CMAKE_CURRENT_LIST_DIR}/dataset_n3dv.cc
   ${CMAKE_CURRENT_LIST_DIR}/knn.cc
-  ${CMAKE_CURRENT_LIST_DIR}/init.cc)
+  ${CMAKE_CURRENT_LIST_DIR}/init.cc
+  ${CMAKE_CURRENT_LIST_DIR}/init_sources.cc
+  ${CMAKE_CURRENT_LIST_DIR}/mvs.cc
+  ${CMAKE_CURRENT_LIST_DIR}/mvs_fusion.cc
+  ${CMAKE_CURRENT_LIST_DIR}/point_cloud_ply.cc
+  ${CMAKE_CURRENT_LIST_DIR}/point_cloud_colmap.cc)
 function(atex_data_tests)
   set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
   atex_add_test(NAME data_io_test
-    SOURCES ${dir}/zip_test.cc ${dir}/npy_test.cc ${dir}/image_test.cc
+    SOURCES ${dir}/zip_test.cc ${dir}/npy_test.cc ${dir}/image_test.cc ${dir}/point_cloud_test.cc
     LIBS atex PNG::PNG ZLIB::ZLIB
     LABELS hostile
     TIMEOUT 300)
   atex_add_test(NAME data_dataset_test
     SOURCES ${dir}/dataset_test.cc ${dir}/init_test.cc
+    LIBS atex
+    TIMEOUT 600)
+  atex_add_test(NAME data_mvs_test
+    SOURCES ${dir}/mvs_test.cc
     LIBS atex
     TIMEOUT 600)
 endfunction()

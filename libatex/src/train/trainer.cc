@@ -29,6 +29,34 @@ double CameraExtent(const std::vector<View>& views) {
   return radius > 0 ? 1.1 * radius : 1.0;
 }
 
+// The stereo and file settings of stage 1 (init methods "mvs", "mvs+hull", "file"): the
+// stereo takes the points the hull does not (all of init_points for "mvs").
+static void SetMvsInitOptions(const Stage1Config& s1, InitOptions* init) {
+  const InitMvsConfig& c = s1.init_mvs;
+  MvsOptions& m = init->mvs;
+  m.max_image_side = c.max_image_side;
+  m.depth_planes = c.depth_planes;
+  m.plane_step_px = c.plane_step_px;
+  m.max_depth_planes = c.max_depth_planes;
+  m.neighbors = c.neighbors;
+  m.best_neighbors = c.best_neighbors;
+  m.window_radius = c.window_radius;
+  m.min_zncc = c.min_zncc;
+  m.min_texture = c.min_texture;
+  m.max_cost_ratio = c.max_cost_ratio;
+  m.min_consistent_views = c.min_consistent_views;
+  m.max_reprojection_px = c.max_reprojection_px;
+  m.max_relative_depth = c.max_relative_depth;
+  init->mvs_near = c.near;
+  init->mvs_far = c.far;
+  init->point_cloud_path = s1.init_point_cloud;
+  init->file_points = static_cast<int>(s1.init_points);
+  if (s1.init_points > 0) {
+    init->mvs_points = init->method == InitMethod::kMvs ? static_cast<int>(s1.init_points)
+                                                        : static_cast<int>(s1.init_points) - init->hull_points;
+  }
+}
+
 static std::vector<double> ViewTimes(const std::vector<View>& views) {
   std::vector<double> times;
   times.reserve(views.size());
@@ -193,12 +221,18 @@ class Loop {
     init.volume_uniform_depth = s1.init_volume.uniform_depth;
     init.volume_max_colour_spread = s1.init_volume.max_colour_spread;
     init.volume_attempts_per_point = s1.init_volume.attempts_per_point;
+    SetMvsInitOptions(s1, &init);
     InitReport report;
     ATEX_ASSIGN_OR_RETURN(Gaussians gaussians, InitializeGaussians(data_, init, &report));
     std::string detail = InitMethodName(report.method);
     if (report.method == InitMethod::kHullAndViewVolume || report.method == InitMethod::kViewVolume) {
       detail = StrCat(detail, ": ", report.hull_points, " hull, ", report.volume_points, " volume of ",
                       report.volume_candidates, " candidates");
+    } else if (report.method == InitMethod::kMvs || report.method == InitMethod::kMvsAndHull) {
+      detail = StrCat(detail, ": ", report.hull_points, " hull, ", report.mvs_points, " stereo of ",
+                      report.mvs.fused_points, " fused, ", report.mvs.seconds_total, " s");
+    } else if (report.method == InitMethod::kFile) {
+      detail = StrCat(detail, ": ", report.file_points, " points of ", s1.init_point_cloud);
     }
     Event(StrCat("initialised ", gaussians.size(), " Gaussians (", detail, ")"));
 

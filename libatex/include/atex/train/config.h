@@ -79,6 +79,27 @@ struct InitVolumeConfig {
   int attempts_per_point = 1000;
 };
 
+// The multi-view stereo of init methods "mvs" and "mvs+hull" (atex/mvs.h MvsOptions;
+// atex/init.h InitOptions::mvs_near/mvs_far). Its point count is init_points ("mvs") or
+// the part of init_points that the hull does not take ("mvs+hull").
+struct InitMvsConfig {
+  int max_image_side = 320;          // stereo resolution: integer box downscale to this longer side
+  double near = 0.2;                 // depth range in median camera distances to the scene centre
+  double far = 2.5;                  //   (the dataset's depth bounds when it has them)
+  int depth_planes = 0;              // fronto-parallel planes, uniform in inverse depth; 0 = as many as
+  double plane_step_px = 1.0;        //   keep a neighbour's image of the plane within this many pixels
+  int max_depth_planes = 512;        //   between planes, at most max_depth_planes
+  int neighbors = 6;                 // neighbour cameras per reference
+  int best_neighbors = 3;            // ZNCCs averaged per pixel (the rest may be occluded)
+  int window_radius = 2;             // ZNCC window (2r + 1)^2
+  double min_zncc = 0.5;
+  double min_texture = 0.01;         // grey standard deviation over the window
+  double max_cost_ratio = 0.9;       // (1 - best) / (1 - second best); 1 = off
+  int min_consistent_views = 2;      // fusion: other cameras whose depths agree
+  double max_reprojection_px = 1.0;
+  double max_relative_depth = 0.01;
+};
+
 struct Stage1Config {
   int coarse_iterations = 3000;
   int fine_iterations = 14000;
@@ -94,11 +115,14 @@ struct Stage1Config {
   DensifyConfig densify;
   RegularizerConfig regularizer;
   DeformationConfig deformation;  // grid/MLP shape; AABB and time mapping are set from the data
-  // Initialisation without a point cloud (atex/init.h methods: "auto", "hull", "volume", "hull+volume", "cube").
+  // Initialisation (atex/init.h methods: "auto", "hull", "volume", "hull+volume", "cube", "mvs",
+  // "mvs+hull", "file").
   std::string init_method = "auto";
-  size_t init_points = 100000;
-  double init_hull_fraction = 2.0 / 3.0;  // of init_points from the hull with "hull+volume" (the rest: volume)
+  size_t init_points = 100000;            // "file": at most this many of the file's points (0 = all)
+  double init_hull_fraction = 2.0 / 3.0;  // of init_points from the hull with "hull+volume" and "mvs+hull"
   InitVolumeConfig init_volume;
+  InitMvsConfig init_mvs;
+  std::string init_point_cloud;           // "file": PLY (x, y, z [, red/green/blue | f_dc_*]) or COLMAP points3D.txt/.bin
 };
 
 struct GrowthAblations {
