@@ -59,6 +59,7 @@ class CudaBackend final : public Backend {
   Status Init();
 
   std::string name() const override { return "cuda"; }
+  int MaxBatchViews() const override { return static_cast<int>(kMaxBatch); }
 
   Status Load(const ModelState& state) override;
 

@@ -65,11 +65,12 @@ __global__ void ProjectBackwardKernel(detail::CameraModel<float> cam, RenderInpu
                                       RenderStats stats, bool with_stats) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i >= in.count || p.radius[i] <= 0) return;
-  const float* sg = splat_grads + size_t(i) * kSplatGradWidth;
-  const Vec2<float> g_mean2d{{sg[0], sg[1]}};
-  const Vec3<float> g_conic{{sg[2], sg[3], sg[4]}};
-  const float g_opacity = sg[5];
-  const Vec3<float> g_color{{sg[6], sg[7], sg[8]}};
+  using L = SplatGradLayout;
+  const float* sg = splat_grads + size_t(i) * L::kWidth;
+  const Vec2<float> g_mean2d{{sg[L::kMean2d], sg[L::kMean2d + 1]}};
+  const Vec3<float> g_conic{{sg[L::kConic], sg[L::kConic + 1], sg[L::kConic + 2]}};
+  const float g_opacity = sg[L::kOpacity];
+  const Vec3<float> g_color{{sg[L::kColor], sg[L::kColor + 1], sg[L::kColor + 2]}};
 
   const Vec3<float> mean = Load3(in.positions, i);
   const Vec3<float> log_scale = Load3(in.log_scales, i);
@@ -90,15 +91,7 @@ __global__ void ProjectBackwardKernel(detail::CameraModel<float> cam, RenderInpu
   const float alpha = p.opacity[i];
   grads.opacity[i] += g_opacity * alpha * (1.0f - alpha);
   if (in.textured()) {
-    detail::TextureFrame<float> g_frame;
-    g_frame.axis_u = {{sg[9], sg[10], sg[11]}};
-    g_frame.axis_v = {{sg[12], sg[13], sg[14]}};
-    g_frame.normal = {{sg[15], sg[16], sg[17]}};
-    g_frame.offset_u = sg[18];
-    g_frame.offset_v = sg[19];
-    g_frame.offset_n = sg[20];
-    g_frame.inv_scale_u = sg[21];
-    g_frame.inv_scale_v = sg[22];
+    const detail::TextureFrame<float> g_frame = L::LoadFrame(sg);
     const uint8_t* layout = in.texture_layout + 4 * i;
     detail::MakeTextureFrameVjp(rotation, mean, log_scale, cam.center, layout[2], layout[3], g_frame, &g_rotation,
                                 &g_mean, &g_log_scale);

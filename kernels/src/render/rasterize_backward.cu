@@ -70,19 +70,6 @@ __device__ inline float WarpSum(float v) {
   return v;
 }
 
-// Flattens a SplatGrad in the order ProjectBackwardKernel reads (kSplatGradWidth values).
-__device__ inline void Flatten(const detail::SplatGrad<float>& g, float* v) {
-  v[0] = g.mean2d[0]; v[1] = g.mean2d[1];
-  v[2] = g.conic[0]; v[3] = g.conic[1]; v[4] = g.conic[2];
-  v[5] = g.opacity;
-  v[6] = g.color[0]; v[7] = g.color[1]; v[8] = g.color[2];
-  v[9] = g.frame.axis_u[0]; v[10] = g.frame.axis_u[1]; v[11] = g.frame.axis_u[2];
-  v[12] = g.frame.axis_v[0]; v[13] = g.frame.axis_v[1]; v[14] = g.frame.axis_v[2];
-  v[15] = g.frame.normal[0]; v[16] = g.frame.normal[1]; v[17] = g.frame.normal[2];
-  v[18] = g.frame.offset_u; v[19] = g.frame.offset_v; v[20] = g.frame.offset_n;
-  v[21] = g.frame.inv_scale_u; v[22] = g.frame.inv_scale_v;
-}
-
 template <bool kTextured>
 __global__ void __launch_bounds__(kBlock) RasterBackwardKernel(
     detail::CameraModel<float> cam, RenderInputs in, Projected p, const uint2* __restrict__ ranges,
@@ -175,13 +162,14 @@ __global__ void __launch_bounds__(kBlock) RasterBackwardKernel(
         SplatVjpAtomic(s, ray, smp, g_c, g_a, &g, g_texels);
       }
       if (!__any_sync(0xffffffffu, valid)) continue;
-      float values[kSplatGradWidth];
-      Flatten(g, values);
-      constexpr int kWidth = kTextured ? kSplatGradWidth : 9;  // untextured splats have no frame gradient
+      float values[SplatGradLayout::kWidth];
+      SplatGradLayout::Store(g, values);
+      // Untextured splats have no frame gradient.
+      constexpr int kWidth = kTextured ? SplatGradLayout::kWidth : SplatGradLayout::kUntexturedWidth;
 #pragma unroll
       for (int k = 0; k < kWidth; ++k) values[k] = WarpSum(values[k]);
       if (lane == 0) {
-        float* dst = splat_grads + size_t(id) * kSplatGradWidth;
+        float* dst = splat_grads + size_t(id) * SplatGradLayout::kWidth;
 #pragma unroll
         for (int k = 0; k < kWidth; ++k) {
           if (values[k] != 0.f) atomicAdd(&dst[k], values[k]);

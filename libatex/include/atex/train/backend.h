@@ -148,18 +148,52 @@ struct RenderRequest {
   float near_plane = kDefaultNearPlane;
 };
 
+// The contract every backend keeps (CPU reference, CUDA; the trainer, the fitter and the
+// tools rely on it, and the parity tests check it):
+//
+// Errors. Every call returns a Status; on an error the backend's state is unspecified
+// except where noted, and the caller's remedy is Load (the trainer fails the run):
+//   kInvalidArgument  a request that does not fit the loaded model (sizes, indices, a
+//                     step asking for deformation or textures the model lacks, a batch
+//                     outside 1..MaxBatchViews(), a target image of the wrong size). The
+//                     state is unchanged: these are checked before any work.
+//   kOutOfRange       values outside what the engine represents (texture sides other
+//                     than 1, 2 or 4).
+//   kLimitExceeded    out of memory, or a size beyond an engine limit (the CUDA backend's
+//                     32-bit texel offsets). The caller may retry smaller.
+//   kNoDevice         the device went away (CUDA).
+//   kInternal         a bug: an invariant of the backend itself failed.
+// Preconditions. Load comes first; every other call refers to the loaded model (its
+// Gaussian count N, SH degree, textures and deformation). Cameras must be valid
+// (camera.h); views of one Step may have different sizes and times.
+// Non-finite steps. When the loss or a gradient of a Step is NaN or ±Inf, the Step
+// returns OK with StepResult::finite == false and applies NO update: parameters, Adam
+// moments and step counters stay as before the call (statistics of that step may have
+// been accumulated). The trainer then restores its last good state (rollback).
+// Threads. A backend is used from one thread at a time.
 class Backend {
  public:
   virtual ~Backend() = default;
   virtual std::string name() const = 0;
 
+  // Most views one Step accepts (the CUDA backend keeps per-view scalars in a fixed
+  // device buffer of 64). Callers split larger batches; Step refuses them with
+  // kInvalidArgument.
+  virtual int MaxBatchViews() const { return std::numeric_limits<int>::max(); }
+
   // Replaces the whole state (parameters, moments, step counters). Resets statistics.
+  // The state must be consistent (ValidateAsset's shapes; moments empty or shaped like
+  // the parameters: empty moments start at zero).
   virtual Status Load(const ModelState& state) = 0;
   // Copies the whole state out (checkpoints, final asset).
   virtual Status Save(ModelState* state) = 0;
   // Copies only the canonical Gaussians out (cheap; densification planning).
   virtual Status ReadGaussians(Gaussians* gaussians) = 0;
 
+  // One optimisation step on 1..MaxBatchViews() views (see the class comment for
+  // non-finite steps). Each view's target must be [H][W][3] of its camera's size, or
+  // null where HasTarget(image_key) said true. The batch loss is the mean of the views'
+  // losses; each group with a non-zero learning rate gets one Adam update.
   virtual StatusOr<StepResult> Step(const StepRequest& request, std::span<const TrainView> views) = 0;
 
   // Gradients of the last Step, shaped like the parameters: out->gaussians,
@@ -167,15 +201,22 @@ class Backend {
   // left empty. For tests (backend parity) and gradient analysis.
   virtual Status ReadGradients(ModelState* out) = 0;
 
+  // Statistics accumulated since the last reset, for the kinds in `kinds` (StatsKind
+  // bits); the other members of `stats` are left as they are.
   virtual Status ReadStats(int kinds, TrainingStats* stats) = 0;
   virtual Status ResetStats(int kinds) = 0;
 
+  // Gathers the Gaussians (edit.source indices < N, overrides sized to the new count;
+  // kInvalidArgument otherwise, state unchanged). Resets statistics.
   virtual Status ApplyEdit(const GaussianEdit& edit) = 0;
-  // Attaches textures (zero texels, zero moments) with the given layout, or replaces the layout.
+  // Attaches textures (zero texels, zero moments) with the given layout, or replaces the
+  // layout. layout.size() must be N.
   virtual Status AttachTextures(const TexturePool& layout) = 0;
+  // Resamples the texels to new sides (N entries each, sides in {1, 2, 4}: kOutOfRange
+  // otherwise). kInvalidArgument when the model has no textures.
   virtual Status ResizeTextures(const TextureResize& resize) = 0;
 
-  // Renders [H][W][3] at the camera's time.
+  // Renders [H][W][3] at the camera's time (unclamped; the request's background).
   virtual StatusOr<Image> Render(const Camera& camera, const RenderRequest& request) = 0;
 
   // Peak device memory in bytes since creation (0 if not tracked).
