@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Issue 20 GPU calls on a machine of one or more GPUs (nvidia-h100-x2 in the issue's runs):
-#   bench/device/issue20.sh start  OUT JOB   build the CLI and the backend parity test, start JOB of
-#                                            parallel_session.sh (base | init) in the background, run
-#                                            the parity test beside it on the last GPU, follow the job
+#   bench/device/issue20.sh start  OUT JOB   build the CLI and the four parity tests, start JOB of
+#                                            parallel_session.sh (base | base2) in the background, run
+#                                            the parity tests beside it on the last GPU, follow the job
 #   bench/device/issue20.sh wait   OUT JOB   follow the job until it ends or the call's time is up
 #   bench/device/issue20.sh sheets OUT JOB   contact-sheet frames (test cameras 0 and 10, every 3rd
 #                                            frame) of every stage-1 model of the job, in OUT/frames.tgz
@@ -13,11 +13,12 @@ mkdir -p "$out"
 export CALL_SECONDS=${CALL_SECONDS:-500} JOBS=$job PARITY=0
 case $phase in
   start)
-    build_tree . "$BUILD" "$(nproc)" atex_cli backend_parity_test 2>&1 | tail -2
+    build_tree . "$BUILD" "$(nproc)" atex_cli backend_parity_test deform_parity_test render_parity_test \
+      loss_parity_test 2>&1 | tail -2
     nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader | tee "$out/gpu.txt"
     last=$(nvidia-smi --query-gpu=index --format=csv,noheader | tail -1)
-    (CUDA_VISIBLE_DEVICES=$last ctest --test-dir "$BUILD" -R backend_parity --output-on-failure -V \
-       > "$out/parity.log" 2>&1; grep -E "tests passed|tests failed|camera colours" "$out/parity.log" \
+    (CUDA_VISIBLE_DEVICES=$last ctest --test-dir "$BUILD" -R parity --output-on-failure -V \
+       > "$out/parity.log" 2>&1; grep -E "tests passed|tests failed|camera colours|Failed|FAILED" "$out/parity.log" \
        > "$out/parity_summary.txt") &
     bench/device/parallel_session.sh start "$out"
     wait
