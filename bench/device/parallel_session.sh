@@ -14,6 +14,7 @@
 #   protocols: bench/configs/panoptic_budget_protocols.json on all GPUs (out/protocols), no FPS
 #   base:    bench/configs/panoptic_base.json on all GPUs (out/base), with FPS (issue 20)
 #   base2:   bench/configs/panoptic_base2.json on all GPUs (out/base2), no FPS (issue 20)
+#   init:    bench/configs/panoptic_init.json on all GPUs (out/init), with FPS (issue 20)
 # With .oldsrc present, `start` also builds it into build-old in the background, for a later
 # bench/device/raster_ab.sh on the models these jobs train (AB_MODEL_DIR).
 # The two share GPUs through run_matrix's per-GPU lock files: one cell per GPU at a time.
@@ -48,7 +49,7 @@ snapshot() {
     nvidia-smi --query-gpu=index,utilization.gpu,memory.used --format=csv,noheader || true
   } > "$out/progress.txt"
   tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic out/stress out/sweep out/same_time \
-    out/fast_raster out/seeds out/protocols out/base out/base2 out/*.log out/*.rc \
+    out/fast_raster out/seeds out/protocols out/base out/base2 out/init out/*.log out/*.rc \
     2>/dev/null || true
 }
 
@@ -69,6 +70,7 @@ case $phase in
         protocols) launch protocols bench/configs/panoptic_budget_protocols.json out/protocols "$gpus" --skip-fps ;;
         base) launch base bench/configs/panoptic_base.json out/base "$gpus" ;;
         base2) launch base2 bench/configs/panoptic_base2.json out/base2 "$gpus" --skip-fps ;;
+        init) launch init bench/configs/panoptic_init.json out/init "$gpus" ;;
         *) echo "unknown job $j" >&2; exit 2 ;;
       esac
     done
