@@ -39,6 +39,7 @@ py::dict GaussianTensors(const GaussiansPtr& g) {
     t.owner = g;
     t.data = const_cast<float*>(v.data());  // consumers get read access by contract (the asset never changes)
     t.shape = std::move(shape);
+    t.read_only = true;
     return MakeTensor(std::move(t));
   };
   py::dict out;

@@ -133,9 +133,13 @@ void RegisterTensor(py::module_& m) {
               strides[i] = stride;
               stride *= shape[i];
             }
-            return py::array(NumpyType(t.dtype), shape, strides, t.data, self);
+            py::array view(NumpyType(t.dtype), shape, strides, t.data, self);
+            if (t.read_only) {
+              py::detail::array_proxy(view.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+            }
+            return view;
           },
-          "A numpy view of host memory (no copy; the view keeps this tensor alive).")
+          "A numpy view of host memory (no copy; the view keeps this tensor alive; read-only for shared memory).")
       .def("__array__", [](py::object self, py::object dtype) {
             py::object view = self.attr("numpy")();
             return dtype.is_none() ? view : view.attr("astype")(dtype);

@@ -48,6 +48,9 @@ struct TensorData {
   dlpack::DataType dtype{dlpack::kFloat, 32, 1};
   std::vector<int64_t> shape;
   dlpack::Device device{dlpack::kCpu, 0};
+  // Shared memory that must not change (an asset's arrays, a dataset's cached image): numpy
+  // views are read-only. (Unversioned DLPack has no read-only flag; consumers are trusted.)
+  bool read_only = false;
 
   int64_t elements() const;
 };

@@ -158,6 +158,7 @@ void RegisterCamera(py::module_& m) {
         t.data = const_cast<float*>(owner->pixels.data());
         t.shape = {owner->height, owner->width, owner->channels};
         t.owner = owner;
+        t.read_only = true;  // the dataset's cache holds the same image
         return MakeTensor(std::move(t)).attr("numpy")();
       }, py::arg("view"), "The view's image, [H, W, 3] float32 RGB in [0, 1] (shared with the cache, read-only).");
 }

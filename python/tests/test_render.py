@@ -45,6 +45,7 @@ def test_render_into_a_tensor_shares_memory_through_dlpack(sample):
     assert tensor.__dlpack_device__() == (1, 0)
     via_dlpack = np.from_dlpack(tensor)  # our DLPack capsule, consumed by numpy
     view = tensor.numpy()
+    assert view.flags.writeable  # a render belongs to the caller
     assert np.shares_memory(via_dlpack, view)
     assert via_dlpack.ctypes.data == tensor.data_ptr
     np.testing.assert_array_equal(via_dlpack, atex.render(sample, camera, backend="cpu"))
@@ -68,6 +69,7 @@ def test_deformed_gaussians_as_tensors(sample):
     positions = np.from_dlpack(tensors["positions"])
     assert positions.shape == (g.count, 3)
     assert np.shares_memory(positions, g.positions)
+    assert not tensors["positions"].numpy().flags.writeable
 
 
 def test_bad_arguments_raise(sample):
@@ -94,6 +96,9 @@ def test_dataset_views_and_images(lego):
     image = lego.image(view)
     assert image.shape == (view.camera.height, view.camera.width, 3)
     assert 0.0 <= image.min() and image.max() <= 1.0
+    assert not image.flags.writeable  # shared with the dataset's image cache
+    again = lego.image(view)
+    assert np.shares_memory(image, again)  # the cached image, not a copy
 
 
 def test_eval_matches_the_command_line(sample, lego):
