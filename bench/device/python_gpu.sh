@@ -40,6 +40,13 @@ cmake --build "$PYBUILD" -j "$(nproc)" --target atex_python atex_cli 2>&1 | tail
 
 export PYTHONPATH=$PWD/$PYBUILD/python ATEX_DATA_DIR=$PWD/.devdata ATEX_SOURCE_DIR=$PWD ATEX_BINARY_DIR=$PWD/$PYBUILD
 export ATEX_REQUIRE_GPU=1
+# PyTorch's venv may lack pytest (or numpy): borrow the system's pure-Python packages, after the venv's.
+if ! "$PY" -c 'import pytest, numpy' 2>/dev/null; then
+  export PYTHONPATH=$PYTHONPATH:/usr/lib/python3/dist-packages
+  echo "python_gpu.sh: pytest/numpy from /usr/lib/python3/dist-packages" | tee -a "$out/python.txt"
+fi
+"$PY" -c 'import numpy, pytest, torch; print("numpy", numpy.__version__, "pytest", pytest.__version__, "torch", torch.__version__)' \
+  | tee -a "$out/python.txt"
 "$PY" -m pytest -q -p no:cacheprovider python/tests -rs > "$out/pytest.log" 2>&1 || echo "python_gpu.sh: pytest failed (see pytest.log)"
 tail -15 "$out/pytest.log"
 

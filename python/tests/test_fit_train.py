@@ -125,3 +125,22 @@ def test_convert_errors_raise(tmp_path):
     with pytest.raises(atex.Error) as e:
         atex.convert(str(tmp_path / "missing.ply"), str(tmp_path / "x.atex"))
     assert e.value.code != 0
+
+
+def test_ctrl_c_stops_training_without_a_callback():
+    import _thread
+    import threading
+    import time
+
+    data = str(require_data("dnerf_lego_tiny/tiny_dnerf_data.npz"))
+    config = tiny_config()
+    config["stage1"]["coarse_iterations"] = 1000000  # hours: only the interrupt can end it
+    timer = threading.Timer(1.0, _thread.interrupt_main)  # as Ctrl-C: SIGINT's flag for the main thread
+    timer.start()
+    start = time.monotonic()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            atex.train(data, config, backend="cpu")
+    finally:
+        timer.cancel()
+    assert time.monotonic() - start < 120
