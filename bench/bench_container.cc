@@ -9,6 +9,7 @@
 // bytes per Gaussian of each component (ComponentBytes), B_per_G = all of them.
 #include <benchmark/benchmark.h>
 
+#include <cstdlib>
 #include <map>
 #include <string>
 
@@ -130,7 +131,25 @@ void BM_Decode(benchmark::State& state, atex::WriteOptions options) {
   SetCounters(state, *bytes);
 }
 
+// ReadAssetFile of a real file (ATEX_BENCH_READ_FILE, default the bundled lego sample, relative
+// to the working directory): the C++ baseline of bench/python_read.py.
+void BM_ReadFile(benchmark::State& state, std::string path) {
+  for (auto _ : state) {
+    auto asset = atex::ReadAssetFile(path);
+    if (!asset.ok()) {
+      state.SkipWithError(asset.status().ToString().c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(asset->gaussians.positions.data());
+  }
+}
+
 const bool kRegistered = [] {
+  const char* read_file = std::getenv("ATEX_BENCH_READ_FILE");
+  benchmark::RegisterBenchmark("ReadFile", BM_ReadFile,
+                               std::string(read_file ? read_file : "samples/lego_adaptive_2MiB.atex"))
+      ->Unit(benchmark::kMillisecond)
+      ->UseRealTime();
   for (const Config& c : Configs()) {
     benchmark::RegisterBenchmark((std::string("Encode/") + c.name).c_str(), BM_Encode, c.options)
         ->Unit(benchmark::kMillisecond)

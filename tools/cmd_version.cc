@@ -1,4 +1,5 @@
 // `atex version`: what this build contains (optional formats, CUDA backend).
+#include "atex/version.h"
 #include "cli.h"
 
 namespace {
@@ -7,7 +8,9 @@ atex::cli::Runner SetupVersion(CLI::App& app) {
   auto json = std::make_shared<bool>(false);
   app.add_flag("--json", *json, "Machine-readable output");
   return [json]() {
-    nlohmann::json info = {{"version", "0.1.0"},
+    nlohmann::json info = {{"version", atex::kVersion},
+                           {"format_version", std::to_string(atex::kFormatVersionMajor) + "." +
+                                                  std::to_string(atex::kFormatVersionMinor)},
 #ifdef ATEX_HAVE_CUDA
                            {"cuda_backend", true},
 #else
@@ -17,7 +20,9 @@ atex::cli::Runner SetupVersion(CLI::App& app) {
     if (*json) {
       atex::cli::PrintJson(info);
     } else {
-      std::printf("atex 0.1.0 (CUDA backend: %s)\n", info["cuda_backend"].get<bool>() ? "built" : "not built");
+      std::printf("atex %s (.atex format %s; CUDA backend: %s)\n", atex::kVersion,
+                  info["format_version"].get<std::string>().c_str(),
+                  info["cuda_backend"].get<bool>() ? "built" : "not built");
     }
     return atex::cli::kExitOk;
   };

@@ -1,12 +1,15 @@
 // atex: the AdaTex4D toolkit's command line. Subcommands live in cmd_*.cc.
 #include <CLI/CLI.hpp>
 
+#include "atex/version.h"
 #include "cli.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"atex - adaptive textured 4D Gaussian splatting toolkit"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", std::string("atex 0.1.0"));
+  app.set_version_flag("--version", std::string("atex ") + atex::kVersion + " (.atex format " +
+                                         std::to_string(atex::kFormatVersionMajor) + "." +
+                                         std::to_string(atex::kFormatVersionMinor) + ")");
   std::vector<std::pair<CLI::App*, atex::cli::Runner>> runners;
   for (const auto& command : atex::cli::Commands()) {
     CLI::App* sub = app.add_subcommand(command.name, command.description);

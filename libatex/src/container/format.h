@@ -6,11 +6,13 @@
 #include <string>
 #include <string_view>
 
+#include "atex/version.h"
+
 namespace atex::container {
 
 inline constexpr std::array<uint8_t, 8> kMagic = {0x89, 'A', 'T', 'E', 'X', 0x0D, 0x0A, 0x1A};
-inline constexpr uint16_t kVersionMajor = 1;
-inline constexpr uint16_t kVersionMinor = 0;
+inline constexpr uint16_t kVersionMajor = kFormatVersionMajor;  // atex/version.h (cmake/version.h.in)
+inline constexpr uint16_t kVersionMinor = kFormatVersionMinor;
 inline constexpr uint64_t kHeaderSize = 32;
 inline constexpr uint64_t kTocEntrySize = 48;
 
