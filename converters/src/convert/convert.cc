@@ -16,6 +16,7 @@
 #include "atex/converters/ply.h"
 #include "atex/deform.h"
 #include "atex/file_io.h"
+#include "convert/world_turn.h"
 
 namespace atex {
 
@@ -205,7 +206,12 @@ Status WriteFrames(const std::string& folder, const Asset& asset, FileFormat for
   SpzWriteOptions spz;
   spz.version = options.spz_version;
   spz.axes = options.spz_axes;
-  auto encode = [&](const Gaussians& g) -> StatusOr<std::vector<uint8_t>> {
+  // PLY and SPZ (unless its stored axes are asked for) get the world turned to their up axis.
+  const bool turn = format == FileFormat::kPly || options.spz_axes == SpzAxes::kOpenCv;
+  std::string turn_note;
+  auto encode = [&](const Gaussians& shown) -> StatusOr<std::vector<uint8_t>> {
+    Gaussians g = shown;
+    if (turn) turn_note = convert::TurnWorldDownY(asset.metadata, &g);
     if (format == FileFormat::kPly) return EncodePlyGaussians(g);
     return EncodeSpz(g, spz);
   };
@@ -251,6 +257,7 @@ Status WriteFrames(const std::string& folder, const Asset& asset, FileFormat for
     }
   }
 
+  if (report && !turn_note.empty()) report->notes.push_back(turn_note);
   const FrameRange& range = *options.frames;
   nlohmann::json manifest = {{"generator", "atex convert"},
                              {"format", FileFormatName(format)},
@@ -483,6 +490,10 @@ Status WriteAssetAs(const std::string& path, const Asset& asset, FileFormat form
       if (report) report->convert_seconds += SecondsSince(convert_start);
       ATEX_RETURN_IF_ERROR(Progress(options, "write", 0.0));
       const auto write_start = Clock::now();
+      if (format == FileFormat::kPly || (format == FileFormat::kSpz && options.spz_axes == SpzAxes::kOpenCv)) {
+        const std::string note = convert::TurnWorldDownY(asset.metadata, &g);
+        if (report && !note.empty()) report->notes.push_back(note);
+      }
       if (format == FileFormat::kPly) {
         ATEX_RETURN_IF_ERROR(WritePlyGaussians(path, g));
       } else if (format == FileFormat::kSpz) {

@@ -25,6 +25,13 @@
 // whose manifest is missing holds an interrupted export. A static asset
 // writes the canonical Gaussians at every time (with a note).
 //
+// Up axis: .ply and .spz outputs (SPZ with the default SpzAxes::kOpenCv) turn
+// the asset's world so that its up axis (metadata.up, atex/world_up.h) is the
+// file's up: -y of the 3DGS PLY convention, +y of SPZ's RUB axes (positions,
+// quaternions and SH coefficients rotate; a note in the report says so). Assets
+// whose up axis is -y or unknown are written unrotated. The readers of .ply and
+// .spz give axes "opencv" (up -y, the 3DGS PLY world).
+//
 // Conversions to a format that cannot hold part of the asset (textures or the
 // deformation field into .ply/.spz/.drc) drop that part and say so in the
 // report (`dropped`; losing the textures, which changes the rendered image,
