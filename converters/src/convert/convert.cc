@@ -14,6 +14,7 @@
 #include "atex/converters/drc.h"
 #include "atex/converters/exr_atlas.h"
 #include "atex/converters/ply.h"
+#include "atex/converters/web_splats.h"
 #include "atex/deform.h"
 #include "atex/file_io.h"
 #include "convert/world_turn.h"
@@ -52,11 +53,16 @@ StatusOr<FileFormat> Resolve(FileFormat format, const std::string& path, const c
   // The only folder format is a 4DGaussians output; a folder that is not one
   // fails in the importer with a message that says what it looked for.
   std::error_code ec;
-  if (std::string_view(role) == "input" && std::filesystem::is_directory(path, ec)) return FileFormat::kFourDgs;
+  if (std::string_view(role) == "input" && std::filesystem::is_directory(path, ec)) {
+    // A folder holding a SOG meta.json is SOG; any other folder a 4DGaussians run.
+    return std::filesystem::exists(std::filesystem::path(path) / "meta.json", ec) ? FileFormat::kSog
+                                                                                  : FileFormat::kFourDgs;
+  }
   const FileFormat by_name = FileFormatFromPath(path);
   if (by_name == FileFormat::kUnknown) {
     return MakeError(StatusCode::kInvalidArgument, "cannot tell the format of ", role, " '", path,
-                     "' from its extension (.ply, .spz, .atex, .exr, .drc; a folder for a 4DGaussians run); ",
+                     "' from its extension (.ply, .spz, .atex, .exr, .drc, .splat, .ksplat, .sog, meta.json; a folder for a ",
+                     "4DGaussians run or a SOG); ",
                      "name it with --from/--to");
   }
   return by_name;
@@ -299,6 +305,9 @@ std::string_view FileFormatName(FileFormat format) {
     case FileFormat::kExrAtlas: return "exr";
     case FileFormat::kDraco: return "drc";
     case FileFormat::kFourDgs: return "4dgs";
+    case FileFormat::kSplat: return "splat";
+    case FileFormat::kKsplat: return "ksplat";
+    case FileFormat::kSog: return "sog";
     case FileFormat::kUnknown: break;
   }
   return "unknown";
@@ -307,10 +316,12 @@ std::string_view FileFormatName(FileFormat format) {
 StatusOr<FileFormat> ParseFileFormat(std::string_view name) {
   const std::string lower = Lower(name);
   for (FileFormat f : {FileFormat::kPly, FileFormat::kSpz, FileFormat::kAtex, FileFormat::kExrAtlas,
-                       FileFormat::kDraco, FileFormat::kFourDgs}) {
+                       FileFormat::kDraco, FileFormat::kFourDgs, FileFormat::kSplat, FileFormat::kKsplat,
+                       FileFormat::kSog}) {
     if (lower == FileFormatName(f)) return f;
   }
-  return MakeError(StatusCode::kInvalidArgument, "unknown format '", name, "' (ply, spz, atex, exr, drc, 4dgs)");
+  return MakeError(StatusCode::kInvalidArgument, "unknown format '", name,
+                   "' (ply, spz, atex, exr, drc, 4dgs, splat, ksplat, sog)");
 }
 
 std::vector<double> FrameRange::Times() const {
@@ -366,6 +377,7 @@ StatusOr<FrameRange> ParseFrameRange(std::string_view text) {
 }
 
 FileFormat FileFormatFromPath(const std::string& path) {
+  if (Lower(std::filesystem::path(path).filename().string()) == "meta.json") return FileFormat::kSog;
   std::string ext = Lower(std::filesystem::path(path).extension().string());
   if (!ext.empty()) ext.erase(0, 1);
   auto format = ParseFileFormat(ext);
@@ -417,6 +429,16 @@ StatusOr<Asset> ReadAssetAs(const std::string& path, FileFormat format_in, const
       std::string axes = options.spz_axes == SpzAxes::kOpenCv ? "opencv" : Lower(info.stored_axes);
       if (axes == "rub") axes = "opengl";
       return AssetFromGaussians(std::move(g), path, std::move(source), axes);
+    }
+    case FileFormat::kSplat:
+    case FileFormat::kKsplat:
+    case FileFormat::kSog: {
+      StatusOr<Gaussians> g = format == FileFormat::kSplat    ? ReadSplatGaussians(path)
+                              : format == FileFormat::kKsplat ? ReadKsplatGaussians(path)
+                                                              : ReadSogGaussians(path);
+      if (!g.ok()) return g.status();
+      // These formats store the 3DGS PLY world (y down), as .ply does.
+      return AssetFromGaussians(std::move(g).value(), path, {{"format", FileFormatName(format)}}, "opencv");
     }
     case FileFormat::kAtex:
       return ReadAssetFile(path);
@@ -536,6 +558,10 @@ Status WriteAssetAs(const std::string& path, const Asset& asset, FileFormat form
     }
     case FileFormat::kFourDgs:
       return MakeError(StatusCode::kUnsupported, "4DGaussians checkpoints can be read, not written");
+    case FileFormat::kSplat:
+    case FileFormat::kKsplat:
+    case FileFormat::kSog:
+      return MakeError(StatusCode::kUnsupported, ".", FileFormatName(format), " files can be read, not written");
     case FileFormat::kUnknown:
       return MakeError(StatusCode::kInternal, "unhandled output format");
   }
@@ -558,6 +584,9 @@ StatusOr<ConvertReport> ConvertFile(const std::string& input, const std::string&
     ATEX_RETURN_IF_ERROR(CheckFramesFolder(output));  // before a possibly long read
   } else {
     ATEX_ASSIGN_OR_RETURN(report.to, Resolve(options.to, output, "output"));
+  }
+  if (report.to == FileFormat::kSplat || report.to == FileFormat::kKsplat || report.to == FileFormat::kSog) {
+    return MakeError(StatusCode::kUnsupported, ".", FileFormatName(report.to), " files can be read, not written");
   }
   if (report.to == FileFormat::kFourDgs) {
     return MakeError(StatusCode::kUnsupported, "4DGaussians checkpoints can be read, not written");
