@@ -22,10 +22,13 @@
 
 #include "atex/converters/convert.h"
 #include "atex/converters/ply.h"
+#include "atex/converters/gltf.h"
 #include "atex/converters/web_splats.h"
 #include "atex/file_io.h"
 #include "atex/zip.h"
+#include "atex/container.h"
 #include "convert/bytes.h"
+#include "convert/upright_test_util.h"
 #include "core/test_support.h"
 
 namespace atex {
@@ -334,6 +337,36 @@ TEST(WebSplatsReal, SharedPlayCanvasSog) {
   ASSERT_TRUE(asset.ok()) << asset.status().ToString();
   EXPECT_EQ(asset->gaussians.positions, ours.positions);
   EXPECT_EQ(asset->metadata.axes, "opencv");
+}
+
+// Golden "upright" check of the PLY exporter: the lego sample (Blender Z-up) written
+// as PLY and converted by PlayCanvas splat-transform to glTF (+y up), which applies
+// PlayCanvas's reading of PLY files (the 3DGS y-down world, turned 180 degrees about
+// z): the up direction of the dataset's cameras must come out along +y there.
+// (splat-transform's SPZ output is no check: it copies PLY coordinates unchanged
+// instead of converting them to SPZ's RUB axes.)
+TEST(WebSplatsReal, ExportedPlyIsUprightInSplatTransform) {
+  ATEX_REQUIRE_FIXTURES(dir);
+  ATEX_REQUIRE_DATA_FILE(lego, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  auto up = converters::testing::CamerasUpVector(lego.string());
+  ASSERT_TRUE(up.ok()) << up.status().ToString();
+  auto asset = ReadAssetFile((testing::SourceDir() / "samples" / "lego_adaptive_2MiB.atex").string());
+  ASSERT_TRUE(asset.ok()) << asset.status().ToString();
+  testing::TempDir out;
+  ConvertOptions options;
+  ASSERT_TRUE(WriteAssetAs((out / "lego.ply").string(), *asset, FileFormat::kPly, options).ok());
+  const fs::path cli = WritersDir() / "node_modules" / "@playcanvas" / "splat-transform" / "bin" / "cli.mjs";
+  const std::string command = "node " + Quote(cli.string()) + " -q -w " + Quote((out / "lego.ply").string()) + " " +
+                              Quote((out / "lego.glb").string());
+  ASSERT_EQ(std::system(command.c_str()), 0) << command;
+  auto shown = ReadGltfFile((out / "lego.glb").string());  // node transforms baked: glTF's frame
+  ASSERT_TRUE(shown.ok()) << shown.status().ToString();
+  ASSERT_EQ(shown->gaussians.size(), asset->gaussians.size());
+  const std::vector<double> decoded(shown->gaussians.positions.begin(), shown->gaussians.positions.end());
+  const Eigen::Matrix3d map = converters::testing::FitLinearMap(asset->gaussians.positions, decoded);
+  const Eigen::Vector3d v = (map * Eigen::Vector3d((*up)[0], (*up)[1], (*up)[2])).normalized();
+  EXPECT_GT(v.y(), std::cos(30 * M_PI / 180)) << "the cameras' up direction is (" << v.transpose()
+                                               << ") in splat-transform's glTF, not +y";
 }
 
 }  // namespace
