@@ -11,7 +11,7 @@ BUILD=${ATEX_BUILD_DIR:-build}
 
 # Debian packages the build needs (README, "Dependencies", says why each is here).
 BUILD_PACKAGES=(build-essential cmake pkg-config libzstd-dev libeigen3-dev libdraco-dev libtinygltf-dev
-  nlohmann-json3-dev libopenexr-dev libgtest-dev libcli11-dev libmeshoptimizer-dev libpng-dev libjpeg-dev
+  nlohmann-json3-dev libopenexr-dev libgtest-dev libcli11-dev libmeshoptimizer-dev libwebp-dev libpng-dev libjpeg-dev
   zlib1g-dev libbenchmark-dev python3-dev pybind11-dev)
 # Extra packages for the full test suite: clang for the sanitizer/libFuzzer build, chromium for the
 # third-party checks in a headless browser (Babylon.js), matplotlib (Debian's python3) for the chart tests,

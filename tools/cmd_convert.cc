@@ -125,14 +125,14 @@ int RunConvert(const ConvertArgs& a) {
 atex::cli::Runner SetupConvert(CLI::App& app) {
   auto a = std::make_shared<ConvertArgs>();
   app.add_option("input", a->input,
-                 "Input file (.ply, .spz, .atex, .exr), or a 4DGaussians output folder (the run folder, whose "
+                 "Input file (.ply incl. .compressed.ply, .spz, .atex, .exr, .splat, .ksplat, .sog or a SOG meta.json), or a 4DGaussians output folder (the run folder, whose "
                  "highest point_cloud/iteration_N is read, or one iteration folder holding point_cloud.ply and "
                  "deformation.pth)")
       ->required();
   app.add_option("output", a->output, "Output file (.ply, .spz, .atex, .exr, .drc), or a folder with --frames")
       ->required();
   app.add_option("--from", a->from, "Input format when the extension does not say it (4dgs: a 4DGaussians folder)")
-      ->check(CLI::IsMember({"ply", "spz", "atex", "exr", "drc", "4dgs"}, CLI::ignore_case));
+      ->check(CLI::IsMember({"ply", "spz", "atex", "exr", "drc", "4dgs", "splat", "ksplat", "sog"}, CLI::ignore_case));
   app.add_option("--to", a->to,
                  "Output format when the extension does not say it (with --frames: ply or spz, default ply)")
       ->check(CLI::IsMember({"ply", "spz", "atex", "exr", "drc"}, CLI::ignore_case));

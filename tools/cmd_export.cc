@@ -174,7 +174,7 @@ atex::cli::Runner SetupExport(CLI::App& app) {
   app.add_flag("--no-deformation", a->no_deformation, "glTF: leave out the deformation field");
   app.add_flag("--no-raw", a->no_raw, "glTF: leave out the raw parameters (import then inverts the activations)");
   app.add_flag("--no-color", a->no_color, "glTF: leave out the COLOR_0 point-cloud fallback");
-  app.add_option("--up", a->up, "World up axis of the asset (+y, -y, +z, -z); default from metadata.axes")
+  app.add_option("--up", a->up, "World up axis of the asset (+x, -x, +y, -y, +z, -z); default: metadata.up (older files: from metadata.axes)")
       ->check(CLI::IsMember({"+y", "-y", "+z", "-z"}));
   app.add_option("--samples", a->samples, "splatv: deformation samples for the motion fit")->check(CLI::Range(4, 100000));
   app.add_option("--psnr", a->psnr_times, "splatv: render this many times with libatex and report the PSNR of the bake")

@@ -9,6 +9,9 @@
 //   garden    real COLMAP points (gsplat's garden) under a real camera: foreground IoU and PSNR
 //   splatv_player  our .splatv in samples/web/splatv.html (our WebGL2 player) at u = 0.5 against
 //             the deformed scene rendered by libatex
+//   upright   the bundled lego sample (Blender Z-up world): the up direction of its dataset's
+//             cameras, carried through the splat mesh's world matrix (our node rotation and the
+//             loader's handedness root), must point up (+y) in Babylon's world
 // Side-by-side pictures (browser left, libatex right) are written as *_browser_vs_atex.png.
 // Usage: node babylon_render.mjs FIXTURE_DIR
 import fs from 'node:fs';
@@ -156,6 +159,31 @@ try {
       check(stats.iouUpsideDown < stats.iou - 0.1, `${name}: the upside-down picture matches worse (IoU ${stats.iouUpsideDown.toFixed(3)})`);
     }
     await page.close();
+  }
+  if (manifest.upright) {
+    const page = await context.newPage();
+    await page.setViewportSize({ width: 160, height: 120 });
+    const errors = [];
+    page.on('pageerror', (e) => errors.push(e.message));
+    await page.goto(`${server.url}/index.html?src=/data/${manifest.upright.glb}`);
+    try {
+      await page.waitForFunction(() => window.atexView !== undefined, null, { timeout: 60000 });
+      await page.evaluate(() => window.atexView.ready);
+      const shown = await page.evaluate((up) => {
+        // Babylon matrices act on row vectors: v' = v M (m[4 r + c]); a direction ignores m[12..14].
+        const m = window.atexViewer.ctx.splats[0].computeWorldMatrix(true).m;
+        const v = [0, 1, 2].map((c) => up[0] * m[c] + up[1] * m[4 + c] + up[2] * m[8 + c]);
+        const length = Math.hypot(...v);
+        return v.map((x) => x / length);
+      }, manifest.upright.cameras_up);
+      console.log(`upright: the lego cameras' up direction is (${shown.map((x) => x.toFixed(3)).join(', ')}) in Babylon's world`);
+      check(shown[1] > Math.cos(Math.PI / 6), `upright: the lego sample's up direction points up in Babylon.js (y = ${shown[1].toFixed(3)} > cos 30 degrees)`);
+    } catch (e) {
+      check(false, `upright: Babylon.js did not load the lego sample: ${e.message} ${errors.join(' | ')}`);
+    }
+    await page.close();
+  } else if (process.env.ATEX_REQUIRE_DATA === '1') {
+    check(false, `real data for the upright check is missing (${manifest.upright_missing})`);
   }
   check(offline.length === 0, `no request left 127.0.0.1 (${offline.slice(0, 3).join(', ')})`);
 } finally {

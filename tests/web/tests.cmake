@@ -1,7 +1,9 @@
 # Third-party checks of our exports, run by CTest (installed by tests/web/install.sh):
 #   web_gltf_validator  Khronos glTF-Validator (npm gltf-validator) on every export flavour
 #   web_babylon_render  our .glb in unmodified Babylon.js in headless Chromium, compared with
-#                       libatex's reference renderer (synthetic "F" and real garden points)
+#                       libatex's reference renderer (synthetic "F" and real garden points);
+#                       the lego sample's cameras' up direction must come out as +y in
+#                       Babylon's world (the golden "upright" check)
 #   web_splatv_reader   our .splatv read by a re-implementation of splaTV's reader and shader
 #   web_cli_export      `atex export` / `atex import` end to end (no node needed)
 # A missing node, npm package or chromium fails these tests when ATEX_REQUIRE_DATA=1 (CI)
@@ -15,7 +17,7 @@ target_link_libraries(atex_web_fixture PRIVATE atex_converters atex atex_build_f
 
 add_test(NAME web_fixture COMMAND atex_web_fixture ${ATEX_WEB_OUT})
 set_tests_properties(web_fixture PROPERTIES FIXTURES_SETUP atex_web TIMEOUT 300
-  ENVIRONMENT "ATEX_DATA_DIR_DEFAULT=${ATEX_DATA_DIR}")
+  ENVIRONMENT "ATEX_DATA_DIR_DEFAULT=${ATEX_DATA_DIR};ATEX_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
 
 add_test(NAME web_cli_export COMMAND bash ${ATEX_WEB_DIR}/cli_export.sh $<TARGET_FILE:atex_cli> ${ATEX_WEB_OUT})
 set_tests_properties(web_cli_export PROPERTIES FIXTURES_REQUIRED atex_web TIMEOUT 300)

@@ -5,6 +5,9 @@
 //   garden.*                gsplat's real COLMAP points of Mip-NeRF 360 "garden" as small
 //                           Gaussians, a real camera, and our reference render
 //   motion.splatv + motion_reference.json   baked motion and the deformation it stands for
+//   upright_lego.glb        the bundled lego sample (D-NeRF, Blender Z-up) exported with its
+//                           recorded up axis, and the up direction of the dataset's cameras
+//                           (from the cameras, not the metadata) that a reader must show as up
 // Usage: atex_web_fixture OUT_DIR   (real data from $ATEX_DATA_DIR or the configured default)
 #include <algorithm>
 #include <cmath>
@@ -22,6 +25,7 @@
 #include "atex/image.h"
 #include "atex/npy.h"
 #include "atex/render.h"
+#include "convert/upright_test_util.h"
 #include "gltf/gltf_test_scene.h"
 
 namespace fs = std::filesystem;
@@ -294,6 +298,21 @@ int main(int argc, char** argv) {
       if (!s.ok()) return Fail("splatv camera", s);
     }
     manifest["splatv"] = {{"file", "motion.splatv"}, {"reference", "motion_reference.json"}, {"gaussians", moving.gaussians.size()}};
+  }
+
+  // 5. Upright: the shipped lego sample, and the up direction its dataset's cameras agree on.
+  const char* source_dir = std::getenv("ATEX_SOURCE_DIR");
+  const fs::path lego = data / "dnerf_lego_tiny" / "tiny_dnerf_data.npz";
+  if (source_dir && fs::exists(lego)) {
+    auto up = atex::converters::testing::CamerasUpVector(lego.string());
+    if (!up.ok()) return Fail("lego cameras", up.status());
+    auto sample = atex::ReadAssetFile((fs::path(source_dir) / "samples" / "lego_adaptive_2MiB.atex").string());
+    if (!sample.ok()) return Fail("lego sample", sample.status());
+    atex::Status s = atex::WriteGltfFile((out / "upright_lego.glb").string(), *sample);
+    if (!s.ok()) return Fail("upright_lego.glb", s);
+    manifest["upright"] = {{"glb", "upright_lego.glb"}, {"cameras_up", *up}};
+  } else {
+    manifest["upright_missing"] = lego.string();
   }
 
   atex::Status s = WriteText(out / "manifest.json", manifest.dump(2));

@@ -14,8 +14,10 @@
 #include "atex/converters/drc.h"
 #include "atex/converters/exr_atlas.h"
 #include "atex/converters/ply.h"
+#include "atex/converters/web_splats.h"
 #include "atex/deform.h"
 #include "atex/file_io.h"
+#include "convert/world_turn.h"
 
 namespace atex {
 
@@ -51,11 +53,16 @@ StatusOr<FileFormat> Resolve(FileFormat format, const std::string& path, const c
   // The only folder format is a 4DGaussians output; a folder that is not one
   // fails in the importer with a message that says what it looked for.
   std::error_code ec;
-  if (std::string_view(role) == "input" && std::filesystem::is_directory(path, ec)) return FileFormat::kFourDgs;
+  if (std::string_view(role) == "input" && std::filesystem::is_directory(path, ec)) {
+    // A folder holding a SOG meta.json is SOG; any other folder a 4DGaussians run.
+    return std::filesystem::exists(std::filesystem::path(path) / "meta.json", ec) ? FileFormat::kSog
+                                                                                  : FileFormat::kFourDgs;
+  }
   const FileFormat by_name = FileFormatFromPath(path);
   if (by_name == FileFormat::kUnknown) {
     return MakeError(StatusCode::kInvalidArgument, "cannot tell the format of ", role, " '", path,
-                     "' from its extension (.ply, .spz, .atex, .exr, .drc; a folder for a 4DGaussians run); ",
+                     "' from its extension (.ply, .spz, .atex, .exr, .drc, .splat, .ksplat, .sog, meta.json; a folder for a ",
+                     "4DGaussians run or a SOG); ",
                      "name it with --from/--to");
   }
   return by_name;
@@ -205,7 +212,12 @@ Status WriteFrames(const std::string& folder, const Asset& asset, FileFormat for
   SpzWriteOptions spz;
   spz.version = options.spz_version;
   spz.axes = options.spz_axes;
-  auto encode = [&](const Gaussians& g) -> StatusOr<std::vector<uint8_t>> {
+  // PLY and SPZ (unless its stored axes are asked for) get the world turned to their up axis.
+  const bool turn = format == FileFormat::kPly || options.spz_axes == SpzAxes::kOpenCv;
+  std::string turn_note;
+  auto encode = [&](const Gaussians& shown) -> StatusOr<std::vector<uint8_t>> {
+    Gaussians g = shown;
+    if (turn) turn_note = convert::TurnWorldDownY(asset.metadata, &g);
     if (format == FileFormat::kPly) return EncodePlyGaussians(g);
     return EncodeSpz(g, spz);
   };
@@ -251,6 +263,7 @@ Status WriteFrames(const std::string& folder, const Asset& asset, FileFormat for
     }
   }
 
+  if (report && !turn_note.empty()) report->notes.push_back(turn_note);
   const FrameRange& range = *options.frames;
   nlohmann::json manifest = {{"generator", "atex convert"},
                              {"format", FileFormatName(format)},
@@ -292,6 +305,9 @@ std::string_view FileFormatName(FileFormat format) {
     case FileFormat::kExrAtlas: return "exr";
     case FileFormat::kDraco: return "drc";
     case FileFormat::kFourDgs: return "4dgs";
+    case FileFormat::kSplat: return "splat";
+    case FileFormat::kKsplat: return "ksplat";
+    case FileFormat::kSog: return "sog";
     case FileFormat::kUnknown: break;
   }
   return "unknown";
@@ -300,10 +316,12 @@ std::string_view FileFormatName(FileFormat format) {
 StatusOr<FileFormat> ParseFileFormat(std::string_view name) {
   const std::string lower = Lower(name);
   for (FileFormat f : {FileFormat::kPly, FileFormat::kSpz, FileFormat::kAtex, FileFormat::kExrAtlas,
-                       FileFormat::kDraco, FileFormat::kFourDgs}) {
+                       FileFormat::kDraco, FileFormat::kFourDgs, FileFormat::kSplat, FileFormat::kKsplat,
+                       FileFormat::kSog}) {
     if (lower == FileFormatName(f)) return f;
   }
-  return MakeError(StatusCode::kInvalidArgument, "unknown format '", name, "' (ply, spz, atex, exr, drc, 4dgs)");
+  return MakeError(StatusCode::kInvalidArgument, "unknown format '", name,
+                   "' (ply, spz, atex, exr, drc, 4dgs, splat, ksplat, sog)");
 }
 
 std::vector<double> FrameRange::Times() const {
@@ -359,6 +377,7 @@ StatusOr<FrameRange> ParseFrameRange(std::string_view text) {
 }
 
 FileFormat FileFormatFromPath(const std::string& path) {
+  if (Lower(std::filesystem::path(path).filename().string()) == "meta.json") return FileFormat::kSog;
   std::string ext = Lower(std::filesystem::path(path).extension().string());
   if (!ext.empty()) ext.erase(0, 1);
   auto format = ParseFileFormat(ext);
@@ -410,6 +429,16 @@ StatusOr<Asset> ReadAssetAs(const std::string& path, FileFormat format_in, const
       std::string axes = options.spz_axes == SpzAxes::kOpenCv ? "opencv" : Lower(info.stored_axes);
       if (axes == "rub") axes = "opengl";
       return AssetFromGaussians(std::move(g), path, std::move(source), axes);
+    }
+    case FileFormat::kSplat:
+    case FileFormat::kKsplat:
+    case FileFormat::kSog: {
+      StatusOr<Gaussians> g = format == FileFormat::kSplat    ? ReadSplatGaussians(path)
+                              : format == FileFormat::kKsplat ? ReadKsplatGaussians(path)
+                                                              : ReadSogGaussians(path);
+      if (!g.ok()) return g.status();
+      // These formats store the 3DGS PLY world (y down), as .ply does.
+      return AssetFromGaussians(std::move(g).value(), path, {{"format", FileFormatName(format)}}, "opencv");
     }
     case FileFormat::kAtex:
       return ReadAssetFile(path);
@@ -483,6 +512,10 @@ Status WriteAssetAs(const std::string& path, const Asset& asset, FileFormat form
       if (report) report->convert_seconds += SecondsSince(convert_start);
       ATEX_RETURN_IF_ERROR(Progress(options, "write", 0.0));
       const auto write_start = Clock::now();
+      if (format == FileFormat::kPly || (format == FileFormat::kSpz && options.spz_axes == SpzAxes::kOpenCv)) {
+        const std::string note = convert::TurnWorldDownY(asset.metadata, &g);
+        if (report && !note.empty()) report->notes.push_back(note);
+      }
       if (format == FileFormat::kPly) {
         ATEX_RETURN_IF_ERROR(WritePlyGaussians(path, g));
       } else if (format == FileFormat::kSpz) {
@@ -525,6 +558,10 @@ Status WriteAssetAs(const std::string& path, const Asset& asset, FileFormat form
     }
     case FileFormat::kFourDgs:
       return MakeError(StatusCode::kUnsupported, "4DGaussians checkpoints can be read, not written");
+    case FileFormat::kSplat:
+    case FileFormat::kKsplat:
+    case FileFormat::kSog:
+      return MakeError(StatusCode::kUnsupported, ".", FileFormatName(format), " files can be read, not written");
     case FileFormat::kUnknown:
       return MakeError(StatusCode::kInternal, "unhandled output format");
   }
@@ -547,6 +584,9 @@ StatusOr<ConvertReport> ConvertFile(const std::string& input, const std::string&
     ATEX_RETURN_IF_ERROR(CheckFramesFolder(output));  // before a possibly long read
   } else {
     ATEX_ASSIGN_OR_RETURN(report.to, Resolve(options.to, output, "output"));
+  }
+  if (report.to == FileFormat::kSplat || report.to == FileFormat::kKsplat || report.to == FileFormat::kSog) {
+    return MakeError(StatusCode::kUnsupported, ".", FileFormatName(report.to), " files can be read, not written");
   }
   if (report.to == FileFormat::kFourDgs) {
     return MakeError(StatusCode::kUnsupported, "4DGaussians checkpoints can be read, not written");

@@ -291,7 +291,7 @@ Status SplatExporter::Build(const Asset& asset) {
   if (options_.up) {
     up = *options_.up;
   } else {
-    ATEX_ASSIGN_OR_RETURN(up, GltfUpAxisFor(asset.metadata.axes));
+    ATEX_ASSIGN_OR_RETURN(up, UpAxisOf(asset.metadata));
   }
   ATEX_RETURN_IF_ERROR(Progress(0.0));
 

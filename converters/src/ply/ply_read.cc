@@ -9,6 +9,7 @@
 #include "atex/converters/ply.h"
 #include "atex/file_io.h"
 #include "convert/bytes.h"
+#include "ply/ply_compressed.h"
 #include "ply/ply_header.h"
 
 namespace atex {
@@ -394,6 +395,8 @@ StatusOr<Gaussians> ReadPlyGaussiansFromMemory(const uint8_t* data, size_t size)
     return MakeError(StatusCode::kCorrupt, "PLY header has no 'vertex' element");
   }
   const Element& vertex = header.elements[vertex_index];
+  // PlayCanvas compressed PLY: chunked quantised layout instead of x, y, z, ...
+  if (converters::ply::IsCompressedPly(header)) return converters::ply::ReadCompressedPly(data, size, header);
   ATEX_ASSIGN_OR_RETURN(VertexLayout layout, ResolveVertexLayout(vertex));
 
   size_t pos = header.data_offset;

@@ -2,6 +2,7 @@
 list(APPEND ATEX_CONVERTER_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/ply_header.cc
   ${CMAKE_CURRENT_LIST_DIR}/ply_read.cc
+  ${CMAKE_CURRENT_LIST_DIR}/ply_compressed.cc
   ${CMAKE_CURRENT_LIST_DIR}/ply_write.cc)
 function(atex_converter_ply_tests)
   atex_add_test(NAME converter_ply_test

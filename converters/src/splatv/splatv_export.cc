@@ -54,6 +54,8 @@ SplatvCamera DefaultCamera(const Bounds& b, UpAxis up) {
     case UpAxis::kPosY: down = {0, -1, 0}, forward = {0, 0, -1}; break;
     case UpAxis::kPosZ: down = {0, 0, -1}, forward = {0, 1, 0}; break;
     case UpAxis::kNegZ: down = {0, 0, 1}, forward = {0, -1, 0}; break;
+    case UpAxis::kPosX: down = {-1, 0, 0}, forward = {0, 0, 1}; break;
+    case UpAxis::kNegX: down = {1, 0, 0}, forward = {0, 0, -1}; break;
   }
   const std::array<double, 3> right = {down[1] * forward[2] - down[2] * forward[1], down[2] * forward[0] - down[0] * forward[2],
                                        down[0] * forward[1] - down[1] * forward[0]};
@@ -315,7 +317,7 @@ StatusOr<SplatvResult> EncodeSplatv(const Asset& asset, const SplatvOptions& opt
     if (options.up) {
       up = *options.up;
     } else {
-      auto from_metadata = GltfUpAxisFor(asset.metadata.axes);
+      auto from_metadata = UpAxisOf(asset.metadata);
       if (from_metadata.ok()) up = *from_metadata;
     }
     cameras.push_back(DefaultCamera(bounds, up));

@@ -188,6 +188,24 @@ TEST(SplatvExport, PsnrOfTheBakeIsMeasuredWithTheReferenceRenderer) {
   EXPECT_LT(r.psnr_full_db, r.psnr_motion_db);
 }
 
+// The default camera looks horizontally with the asset's world up axis up: its image
+// "down" axis (column 1 of the camera-to-world rotation) is minus metadata.up, and
+// older files without metadata.up get the rule of metadata.axes ("opencv": up -y).
+TEST(SplatvExport, DefaultCameraHasTheWorldUpAxisUp) {
+  for (const auto& [up, down] : std::vector<std::pair<std::string, std::array<double, 3>>>{
+           {"+z", {0, 0, -1}}, {"-y", {0, 1, 0}}, {"+x", {-1, 0, 0}}, {"", {0, 1, 0}}}) {
+    Asset asset = testing::MakeTestAsset({.count = 10, .sh_degree = 0, .textures = false, .deformation = false});
+    asset.metadata.axes = "opencv";
+    asset.metadata.up = up;
+    auto result = EncodeSplatv(asset);
+    ASSERT_TRUE(result.ok()) << result.status().ToString();
+    auto file = DecodeSplatv(result->bytes.data(), result->bytes.size());
+    ASSERT_TRUE(file.ok());
+    const auto& r = file->chunks[file->splat_chunk]["cameras"][0]["rotation"];  // rows of camera-to-world
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(r[size_t(k)][1].get<double>(), down[size_t(k)], 1e-12) << "up '" << up << "'";
+  }
+}
+
 TEST(SplatvExport, StaticAssetHasNoMotion) {
   const Asset asset = testing::MakeTestAsset({.count = 10, .sh_degree = 0, .textures = false, .deformation = false});
   auto result = EncodeSplatv(asset);

@@ -17,7 +17,10 @@
 #include "atex/converters/ply.h"
 #include "atex/converters/spz.h"
 #include "atex/file_io.h"
+#include "atex/container.h"
+#include "atex/converters/convert.h"
 #include "convert/test_gaussians.h"
+#include "convert/upright_test_util.h"
 #include "core/test_support.h"
 
 namespace atex {
@@ -196,6 +199,34 @@ TEST(SpzNodeReference, RealBikerV4ReadsTheSame) {
   const fs::path copy = dir / "biker.spz";  // the reference script writes its JSON beside its input
   fs::copy_file(path, copy);
   ExpectSameAsReference(ReferenceDecode(copy, "RDF", 101), *ours);
+}
+
+// Golden "upright" check: the bundled lego sample (D-NeRF, a Blender Z-up world)
+// exported to SPZ and decoded by the reference library into SPZ's own axes (RUB:
+// +y up) has the up direction of the dataset's cameras along +y. The expected
+// direction comes from the cameras, not from the asset's metadata.
+TEST(SpzNodeReference, ExportedSampleIsUpright) {
+  ATEX_REQUIRE_NODE_DECODER();
+  ATEX_REQUIRE_DATA_FILE(lego, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  auto up = converters::testing::CamerasUpVector(lego.string());
+  ASSERT_TRUE(up.ok()) << up.status().ToString();
+  auto asset = ReadAssetFile((testing::SourceDir() / "samples" / "lego_adaptive_2MiB.atex").string());
+  ASSERT_TRUE(asset.ok()) << asset.status().ToString();
+  testing::TempDir dir;
+  const fs::path spz = dir / "lego.spz";
+  ConvertOptions options;
+  ASSERT_TRUE(WriteAssetAs(spz.string(), *asset, FileFormat::kSpz, options).ok());
+  const nlohmann::json ref = ReferenceDecode(spz, "RUB", 1);
+  ASSERT_TRUE(ref.is_object());
+  ASSERT_EQ(ref["numPoints"].get<size_t>(), asset->gaussians.size());
+  std::vector<double> decoded;
+  for (const auto& p : ref["points"]) {
+    for (int k = 0; k < 3; ++k) decoded.push_back(p["position"][k].get<double>());
+  }
+  const Eigen::Matrix3d map = converters::testing::FitLinearMap(asset->gaussians.positions, decoded);
+  const Eigen::Vector3d shown = (map * Eigen::Vector3d((*up)[0], (*up)[1], (*up)[2])).normalized();
+  EXPECT_GT(shown.y(), std::cos(30 * M_PI / 180)) << "the cameras' up direction decodes as (" << shown.transpose()
+                                                   << ") in SPZ's RUB axes, not +y";
 }
 
 }  // namespace

@@ -165,6 +165,9 @@ struct Metadata {
   std::array<float, 3> background{0, 0, 0};  // RGB in [0, 1]
   std::string texture_mode = "none";         // "none", "uniform" or "adaptive"
   std::string axes = "opencv";               // camera convention of the cameras it was trained with
+  // World up axis: "+x", "-x", "+y", "-y", "+z" or "-z"; empty when the file does not
+  // record it (older files: WorldUpAxis in atex/world_up.h derives it from `axes`).
+  std::string up;
   std::string units = "unknown";             // world units, e.g. "meters"
   nlohmann::json extra = nlohmann::json::object();  // provenance: trainer, config, dataset, commit, date
 };

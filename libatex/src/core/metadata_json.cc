@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "atex/model.h"
+#include "atex/world_up.h"
 
 namespace atex {
 namespace {
@@ -64,6 +65,7 @@ nlohmann::json MetadataToJson(const Metadata& metadata) {
   json["texture_mode"] = metadata.texture_mode;
   json["axes"] = metadata.axes;
   json["units"] = metadata.units;
+  if (!metadata.up.empty()) json["up"] = metadata.up;  // absent: older readers and golden files unchanged
   json["extra"] = metadata.extra.is_object() ? metadata.extra : nlohmann::json::object();
   return json;
 }
@@ -90,6 +92,12 @@ StatusOr<Metadata> MetadataFromJson(const nlohmann::json& json) {
         ATEX_RETURN_IF_ERROR(ReadString(value, "texture_mode", &m.texture_mode));
       } else if (key == "axes") {
         ATEX_RETURN_IF_ERROR(ReadString(value, "axes", &m.axes));
+      } else if (key == "up") {
+        ATEX_RETURN_IF_ERROR(ReadString(value, "up", &m.up));
+        if (!IsUpAxisName(m.up)) {
+          return MakeError(StatusCode::kCorrupt, "metadata key 'up' = '", m.up,
+                           "' is not one of +x, -x, +y, -y, +z, -z");
+        }
       } else if (key == "units") {
         ATEX_RETURN_IF_ERROR(ReadString(value, "units", &m.units));
       } else if (key == "extra") {

@@ -11,6 +11,7 @@
 #include "atex/train/camera_colours.h"
 #include "atex/train/checkpoint.h"
 #include "atex/train/schedule.h"
+#include "atex/world_up.h"
 
 namespace atex::train {
 
@@ -261,6 +262,12 @@ class Loop {
     metadata_.time_min = data_.time_min();
     metadata_.time_max = data_.time_max();
     metadata_.background = config_.background;
+    {
+      // The world's up axis as the training cameras agree on it (atex/world_up.h).
+      std::vector<Camera> cameras;
+      for (const auto& view : data_.train_views()) cameras.push_back(view.camera);
+      metadata_.up = UpAxisFromCameras(cameras).value_or("");
+    }
     ModelState state;
     state.gaussians = std::move(gaussians);
     state.deformation = std::move(field);

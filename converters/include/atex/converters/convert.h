@@ -10,6 +10,12 @@
 //           --base asset
 //   .drc    -                                      Draco point cloud (drc.h) of the
 //                                                  centres (canonical or at --time)
+//   .splat  antimatter15 .splat (web_splats.h)     -
+//   .ksplat GaussianSplats3D .ksplat, levels 0-2   -
+//   .sog    PlayCanvas SOG v2: a .sog bundle, a    -
+//           meta.json, or a folder holding one
+//           (needs libwebp)
+//   (PlayCanvas .compressed.ply is read as .ply)
 //   4dgs    a 4DGaussians output folder            -
 //           (fourdgs.h): the run folder (the
 //           highest point_cloud/iteration_N,
@@ -24,6 +30,13 @@
 // Each file is written atomically; frames.json is written last, so a folder
 // whose manifest is missing holds an interrupted export. A static asset
 // writes the canonical Gaussians at every time (with a note).
+//
+// Up axis: .ply and .spz outputs (SPZ with the default SpzAxes::kOpenCv) turn
+// the asset's world so that its up axis (metadata.up, atex/world_up.h) is the
+// file's up: -y of the 3DGS PLY convention, +y of SPZ's RUB axes (positions,
+// quaternions and SH coefficients rotate; a note in the report says so). Assets
+// whose up axis is -y or unknown are written unrotated. The readers of .ply,
+// .spz, .splat, .ksplat and SOG give axes "opencv" (up -y, the 3DGS PLY world).
 //
 // Conversions to a format that cannot hold part of the asset (textures or the
 // deformation field into .ply/.spz/.drc) drop that part and say so in the
@@ -48,14 +61,16 @@
 
 namespace atex {
 
-// kFourDgs: a 4DGaussians output folder (read only).
-enum class FileFormat : uint8_t { kUnknown = 0, kPly, kSpz, kAtex, kExrAtlas, kDraco, kFourDgs };
+// kFourDgs: a 4DGaussians output folder; kSplat, kKsplat, kSog: web viewers'
+// static formats (all read only).
+enum class FileFormat : uint8_t { kUnknown = 0, kPly, kSpz, kAtex, kExrAtlas, kDraco, kFourDgs, kSplat, kKsplat, kSog };
 
-// "ply", "spz", "atex", "exr", "drc", "4dgs" ("unknown" for kUnknown).
+// "ply", "spz", "atex", "exr", "drc", "4dgs", "splat", "ksplat", "sog" ("unknown" for kUnknown).
 std::string_view FileFormatName(FileFormat format);
 // The inverse of FileFormatName (case-insensitive); kInvalidArgument for other names.
 StatusOr<FileFormat> ParseFileFormat(std::string_view name);
-// By the path's extension (case-insensitive); kUnknown when it names no format.
+// By the path's extension (case-insensitive; a file named meta.json is kSog);
+// kUnknown when it names no format.
 // (An input that is a folder is read as kFourDgs by ReadAssetAs/ConvertFile;
 // this function does not look at the file system.)
 FileFormat FileFormatFromPath(const std::string& path);

@@ -15,7 +15,8 @@
 //   * The asset metadata as JSON in the root `extras.atex`.
 //   * The world is converted to glTF's +Y up by the rotation of the single node that holds
 //     the mesh (the data itself is untouched, so import is bit-exact). The rotation
-//     follows metadata.axes (see GltfUpAxisFor) unless the caller overrides it.
+//     follows the asset's world up axis (UpAxisOf: metadata.up, or for older files the
+//     rule of metadata.axes) unless the caller overrides it.
 //   * Optional EXT_meshopt_compression (when the build has meshoptimizer): every
 //     bufferView is compressed; rotations become normalized int16 with the QUATERNION
 //     filter, other floats use the EXPONENTIAL filter (lossy) or none (lossless).
@@ -46,18 +47,26 @@ namespace atex {
 using GltfProgress = std::function<bool(double fraction)>;
 
 // Which world direction is "up" in the asset, for the conversion to glTF's +Y up.
-enum class UpAxis : uint8_t { kPosY, kNegY, kPosZ, kNegZ };
+enum class UpAxis : uint8_t { kPosY, kNegY, kPosZ, kNegZ, kPosX, kNegX };
 
-// Up axis implied by metadata.axes: "opencv" (the datasets' camera-style world, y down)
-// -> kNegY; "blender" / "z_up" -> kPosZ; "gltf" / "opengl" / "y_up" -> kPosY. Unknown
-// names give kInvalidArgument (pass an explicit override instead).
+// Up axis implied by metadata.axes alone (files without metadata.up): "opencv" (the
+// datasets' camera-style world, y down) -> kNegY; "blender" / "z_up" -> kPosZ; "gltf" /
+// "opengl" / "y_up" -> kPosY. Unknown names give kInvalidArgument.
 StatusOr<UpAxis> GltfUpAxisFor(const std::string& axes);
-// Parses "+y", "-y", "+z", "-z" (command-line override).
+// The asset's world up axis: metadata.up when recorded, else GltfUpAxisFor(axes)
+// (atex/world_up.h). kInvalidArgument when neither says.
+StatusOr<UpAxis> UpAxisOf(const Metadata& metadata);
+// Parses "+x", "-x", "+y", "-y", "+z", "-z" (metadata.up, command-line override).
 StatusOr<UpAxis> ParseUpAxis(const std::string& text);
+// The name ParseUpAxis reads ("+y", ...).
+std::string UpAxisName(UpAxis up);
 // The unit quaternion (x, y, z, w) that rotates an asset with this up axis to +Y up:
 // identity for kPosY, 180 degrees about x for kNegY, -90 / +90 degrees about x for
-// kPosZ / kNegZ. Right-handedness is kept (these are proper rotations).
+// kPosZ / kNegZ, +90 / -90 degrees about z for kPosX / kNegX. Right-handedness is
+// kept (these are proper rotations).
 std::array<double, 4> GltfRootRotation(UpAxis up);
+// The same rotation as a row-major 3x3 matrix (entries exactly 0, 1 or -1).
+std::array<double, 9> UpRotationMatrix(UpAxis up);
 
 // Deforms the canonical Gaussians to `time` (the scene's time units). The command line
 // passes libatex's deformation forward pass; tests pass analytic motion.
@@ -73,7 +82,7 @@ struct GltfExportOptions {
   bool deformation = true;     // write the field of ATEX_gaussian_deformation when present
   bool raw_parameters = true;  // write ATEX_gaussian_deformation's raw attributes (bit-exact import)
   bool color_fallback = true;  // write COLOR_0
-  std::optional<UpAxis> up;    // override metadata.axes
+  std::optional<UpAxis> up;    // override the asset's up axis (UpAxisOf)
 
   // EXT_meshopt_compression (kUnsupported when the build lacks meshoptimizer).
   bool meshopt = false;

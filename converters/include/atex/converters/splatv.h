@@ -58,7 +58,7 @@ struct SplatvOptions {
   int samples = 32;                  // deformation samples over the time range (>= 4)
   DeformFn deform;                   // default: libatex's DeformForward
   std::vector<SplatvCamera> cameras; // empty: one camera that frames the scene from its front
-  std::optional<UpAxis> up;          // for the default camera; default from metadata.axes
+  std::optional<UpAxis> up;          // for the default camera; default: the asset's up axis (UpAxisOf)
   // When > 0, renders this many times (evenly over the range) from cameras[0] with libatex's
   // reference renderer and reports the PSNR of the baked scene (SplatvFitReport::psnr_*).
   int psnr_times = 0;
