@@ -29,6 +29,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -95,19 +96,40 @@ std::vector<Probe> OrbitProbes(const Asset& asset, int count, int width, int hei
 // Camera re-scaled to at most `max_side` pixels on its longer side (intrinsics scaled).
 Camera ScaleCamera(const Camera& camera, int max_side);
 
-// Renders assets through a training backend (CPU or CUDA).
+namespace internal {
+class CpuProbeRenderer;
+}
+
+// Renders assets for the fitter's measurements. On a GPU backend, through the backend
+// (Load, then one Render per camera). On the CPU backend (or none), through the reference
+// rasteriser with the deformation of unchanged positions kept between renders
+// (src/fit/cpu_probes.h): a fit renders dozens of nearly equal assets, and deforming
+// every Gaussian at every probe time dominated the CPU fit. Equal to the CPU backend's
+// renders within the tolerance stated in cpu_probes_test.cc.
 class ProbeRenderer {
  public:
-  ProbeRenderer(train::Backend* backend, std::vector<Probe> probes) : backend_(backend), probes_(std::move(probes)) {}
+  // `backend` may be null (CPU renders).
+  ProbeRenderer(train::Backend* backend, std::vector<Probe> probes);
+  ~ProbeRenderer();
   const std::vector<Probe>& probes() const { return probes_; }
   // Renders every probe (renders are not clamped; the background is the asset's).
   StatusOr<std::vector<Image>> Render(const Asset& asset);
   // Renders `cameras` and returns one image per camera.
   StatusOr<std::vector<Image>> RenderCameras(const Asset& asset, const std::vector<Camera>& cameras);
+  // EnsureImportance over this renderer's probes; on the CPU its deformations stay
+  // cached for the plan's renders of the same asset.
+  Status EnsureImportance(Asset* asset);
+  // The CPU caches' work since construction (all zero on a GPU backend).
+  struct CacheCounts {
+    uint64_t deformed = 0, deform_reused = 0;   // (Gaussian, probe) deformations computed / reused
+    uint64_t tiles_drawn = 0, tiles_reused = 0; // (probe, tile) composited / taken from the cache
+  };
+  CacheCounts cache_counts() const;
 
  private:
   train::Backend* backend_;
   std::vector<Probe> probes_;
+  std::unique_ptr<internal::CpuProbeRenderer> cpu_;  // when backend_ is null or the CPU backend
 };
 
 // Mean over images of the per-pixel, per-channel squared difference (renders clamped to [0, 1]).
@@ -147,6 +169,7 @@ struct MeasureTiming {
   double propose_seconds = 0;     // listing the candidate moves of each state (Proposals)
   double total_seconds = 0;       // BuildPlan's whole wall time: the parts above, the prune order,
                                   // bookkeeping and PlanOptions::accept_more (--quality's evaluations)
+  ProbeRenderer::CacheCounts probe_cache;  // the CPU probe renderer's reuse during the plan
 };
 nlohmann::json TimingToJson(const MeasureTiming& timing);
 

@@ -106,9 +106,23 @@ MoveKey KeyOf(const Move& m) {
           m.lever == Lever::kEncoding ? static_cast<int>(m.encoding) : -1};
 }
 
-}  // namespace
+// A proposal's cost per byte saved, measured at the current state (fresh) or an earlier one.
+struct Cached {
+  double ratio = 0;
+  uint64_t saving = 0;
+  bool fresh = false;
+};
+constexpr double kNoGain = std::numeric_limits<double>::infinity();
+struct Evaluated {
+  Cached cost;
+  Measured measured;
+  State next;     // the state after the move (kept only for the best fresh evaluation)
+  Asset decoded;  // what a reader of `next` gets (for accept_more)
+};
+bool Better(const Cached& a, const Cached& b) { return a.ratio < b.ratio || (a.ratio == b.ratio && a.saving > b.saving); }
 
-StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const PlanOptions& options) {
+// kInvalidArgument for options or probes a plan cannot be built with.
+Status CheckPlanInputs(const ProbeRenderer& renderer, const PlanOptions& options) {
   if (!(options.prune_fraction > 0 && options.prune_fraction < 1) ||
       !(options.texture_fraction > 0 && options.texture_fraction <= 1)) {
     return MakeError(StatusCode::kInvalidArgument, "fit: step fractions must be in (0, 1)");
@@ -117,7 +131,25 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
     return MakeError(StatusCode::kInvalidArgument, "fit: the lever set ", options.levers,
                      " names no lever or an unknown one");
   }
+  if (renderer.probes().empty()) {
+    return MakeError(StatusCode::kInvalidArgument, "fit: no probe views to measure distortion from");
+  }
+  return Status::Ok();
+}
+
+void ReportProgress(const PlanOptions& options, const Plan& plan, const Move& move, const Measured& current) {
+  if (!options.progress) return;
+  options.progress(FitProgress{static_cast<int>(plan.moves.size()), current.bytes, options.floor_bytes,
+                               StrCat(DescribeMove(move), ": ", current.bytes, " bytes, proxy PSNR ",
+                                      current.distortion > 0 ? -10.0 * std::log10(current.distortion) : 99.0)});
+}
+
+}  // namespace
+
+StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const PlanOptions& options) {
+  ATEX_RETURN_IF_ERROR(CheckPlanInputs(*renderer, options));
   ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
+  const ProbeRenderer::CacheCounts before = renderer->cache_counts();
   Plan plan;
   Stopwatch whole;
   plan.prune_order = ImportanceOrder(asset, options.seed);
@@ -139,21 +171,6 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   // Lazy greedy: each proposal keeps the cost per byte measured at an earlier state
   // (costs change slowly between moves); a stale best is measured again, and a move is
   // taken only when the best cost is a fresh one (measured at the current state).
-  struct Cached {
-    double ratio = 0;
-    uint64_t saving = 0;
-    bool fresh = false;
-  };
-  constexpr double kNoGain = std::numeric_limits<double>::infinity();
-  struct Evaluated {
-    Cached cost;
-    Measured measured;
-    State next;     // the state after the move (kept only for the best fresh evaluation)
-    Asset decoded;  // what a reader of `next` gets (for accept_more)
-  };
-  const auto better = [](const Cached& a, const Cached& b) {
-    return a.ratio < b.ratio || (a.ratio == b.ratio && a.saving > b.saving);
-  };
   const auto evaluate = [&](const Move& proposal) -> StatusOr<Evaluated> {
     Evaluated e;
     e.cost = Cached{kNoGain, 0, true};
@@ -187,7 +204,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
     std::optional<std::pair<MoveKey, Evaluated>> best_fresh;
     const auto remember = [&](const Move& p, Evaluated e) {
       cache[KeyOf(p)] = e.cost;
-      if (e.cost.ratio != kNoGain && (!best_fresh || better(e.cost, best_fresh->second.cost))) {
+      if (e.cost.ratio != kNoGain && (!best_fresh || Better(e.cost, best_fresh->second.cost))) {
         best_fresh.emplace(KeyOf(p), std::move(e));
       }
     };
@@ -203,7 +220,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
     for (size_t pass = 0; pass <= proposals.size() && chosen == nullptr; ++pass) {
       const Move* best = nullptr;
       for (const Move& p : proposals) {
-        if (best == nullptr || better(cache[KeyOf(p)], cache[KeyOf(*best)])) best = &p;
+        if (best == nullptr || Better(cache[KeyOf(p)], cache[KeyOf(*best)])) best = &p;
       }
       const Cached& cost = cache[KeyOf(*best)];
       if (cost.ratio == kNoGain) break;
@@ -234,13 +251,12 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
         cache.erase(MoveKey{static_cast<int>(Lever::kEncoding), static_cast<int>(move.stream), static_cast<int>(e)});
       }
     }
-    if (options.progress) {
-      options.progress(FitProgress{static_cast<int>(plan.moves.size()), current.bytes, options.floor_bytes,
-                                   StrCat(DescribeMove(move), ": ", current.bytes, " bytes, proxy PSNR ",
-                                          current.distortion > 0 ? -10.0 * std::log10(current.distortion) : 99.0)});
-    }
+    ReportProgress(options, plan, move, current);
   }
   plan.timing.total_seconds = whole.Lap();
+  const ProbeRenderer::CacheCounts after = renderer->cache_counts();
+  plan.timing.probe_cache = {after.deformed - before.deformed, after.deform_reused - before.deform_reused,
+                             after.tiles_drawn - before.tiles_drawn, after.tiles_reused - before.tiles_reused};
   return plan;
 }
 

@@ -4,6 +4,7 @@
 #include <numeric>
 
 #include "atex/deform.h"
+#include "cpu_probes.h"
 #include "atex/fit.h"
 #include "atex/render.h"
 #include "atex/train/schedule.h"
@@ -43,6 +44,18 @@ std::array<double, 16> LookAt(const std::array<double, 3>& eye, const std::array
   m[11] = -(z[0] * eye[0] + z[1] * eye[1] + z[2] * eye[2]);
   m[15] = 1;
   return m;
+}
+
+// Stores a measured importance; the other statistics are unknown: zero, as training writes
+// them for never-visible Gaussians.
+void SetImportance(Asset* asset, std::vector<float> importance) {
+  const size_t n = asset->gaussians.size();
+  if (!asset->stats) asset->stats = GaussianStats{};
+  GaussianStats& stats = *asset->stats;
+  stats.importance = std::move(importance);
+  for (std::vector<float>* v : {&stats.texture_demand, &stats.peak_scale_u, &stats.peak_scale_v}) {
+    if (v->size() != n) v->assign(n, 0.0f);
+  }
 }
 
 }  // namespace
@@ -101,7 +114,15 @@ Camera ScaleCamera(const Camera& camera, int max_side) {
   return c;
 }
 
+ProbeRenderer::ProbeRenderer(train::Backend* backend, std::vector<Probe> probes)
+    : backend_(backend), probes_(std::move(probes)) {
+  if (backend_ == nullptr || backend_->name() == "cpu") cpu_ = std::make_unique<internal::CpuProbeRenderer>();
+}
+
+ProbeRenderer::~ProbeRenderer() = default;
+
 StatusOr<std::vector<Image>> ProbeRenderer::RenderCameras(const Asset& asset, const std::vector<Camera>& cameras) {
+  if (cpu_) return cpu_->Render(asset, cameras, train::RenderRequestFor(asset));
   ATEX_RETURN_IF_ERROR(backend_->Load(train::StateFromAsset(asset)));
   const train::RenderRequest request = train::RenderRequestFor(asset);
   std::vector<Image> images;
@@ -111,6 +132,28 @@ StatusOr<std::vector<Image>> ProbeRenderer::RenderCameras(const Asset& asset, co
     images.push_back(std::move(image));
   }
   return images;
+}
+
+Status ProbeRenderer::EnsureImportance(Asset* asset) {
+  if (!cpu_) return fit::EnsureImportance(asset, probes_);
+  const size_t n = asset->gaussians.size();
+  if (asset->stats && asset->stats->importance.size() == n) return Status::Ok();
+  std::vector<Camera> cameras;
+  for (const Probe& p : probes_) cameras.push_back(p.camera);
+  ATEX_ASSIGN_OR_RETURN(std::vector<float> importance, cpu_->Importance(*asset, cameras, train::RenderRequestFor(*asset)));
+  SetImportance(asset, std::move(importance));
+  return Status::Ok();
+}
+
+ProbeRenderer::CacheCounts ProbeRenderer::cache_counts() const {
+  CacheCounts c;
+  if (cpu_) {
+    c.deformed = cpu_->deformed();
+    c.deform_reused = cpu_->reused();
+    c.tiles_drawn = cpu_->tiles_drawn();
+    c.tiles_reused = cpu_->tiles_reused();
+  }
+  return c;
 }
 
 StatusOr<std::vector<Image>> ProbeRenderer::Render(const Asset& asset) {
@@ -157,13 +200,7 @@ Status EnsureImportance(Asset* asset, const std::vector<Probe>& probes) {
     ATEX_ASSIGN_OR_RETURN(RenderOutput out, RenderForward(probe.camera, *shown, textures, settings));
     for (size_t i = 0; i < n; ++i) importance[i] += out.importance[i];
   }
-  if (!asset->stats) asset->stats = GaussianStats{};
-  GaussianStats& stats = *asset->stats;
-  stats.importance = std::move(importance);
-  // The other statistics are unknown: zero, as training writes them for never-visible Gaussians.
-  for (std::vector<float>* v : {&stats.texture_demand, &stats.peak_scale_u, &stats.peak_scale_v}) {
-    if (v->size() != n) v->assign(n, 0.0f);
-  }
+  SetImportance(asset, std::move(importance));
   return Status::Ok();
 }
 

@@ -119,7 +119,10 @@ nlohmann::json TimingToJson(const MeasureTiming& t) {
                        {"other", std::max(0.0, t.total_seconds - parts)}, {"total", t.total_seconds}}},
           {"seconds_per_measurement",
            {{"apply", t.apply_seconds * per}, {"encode", t.encode_seconds * per}, {"decode", t.decode_seconds * per},
-            {"render", t.render_seconds * per}, {"distortion", t.distortion_seconds * per}}}};
+            {"render", t.render_seconds * per}, {"distortion", t.distortion_seconds * per}}},
+          {"probe_cache",
+           {{"deformed", t.probe_cache.deformed}, {"deform_reused", t.probe_cache.deform_reused},
+            {"tiles_drawn", t.probe_cache.tiles_drawn}, {"tiles_reused", t.probe_cache.tiles_reused}}}};
 }
 
 nlohmann::json MoveToJson(const Move& m) {

@@ -10,6 +10,49 @@ namespace atex::render_internal {
 using detail::Vec3;
 
 template <typename T>
+void RasterizeTile(const detail::CameraModel<T>& cam, const BasicTexturePool<T>* textures, const Vec3<T>& background,
+                   int t, detail::SplatParams<T>* splats, T* skip_below, T* weights, BasicRenderOutput<T>* out) {
+  auto& st = out->state;
+  const int width = cam.width, height = cam.height;
+  const uint64_t begin = st.tile_ranges[t], end = st.tile_ranges[t + 1];
+  const int count = static_cast<int>(end - begin);
+  const bool textured = textures != nullptr;
+  for (int k = 0; k < count; ++k) {
+    splats[k] = MakeSplatParams(*out, textures, st.tile_gaussians[begin + k]);
+    skip_below[k] = SkipPowerBelow(splats[k]);
+  }
+  const int x0 = (t % cam.tiles_x) * detail::kTileSize, y0 = (t / cam.tiles_x) * detail::kTileSize;
+  const int x1 = std::min(x0 + detail::kTileSize, width), y1 = std::min(y0 + detail::kTileSize, height);
+  for (int y = y0; y < y1; ++y) {
+    for (int x = x0; x < x1; ++x) {
+      const T px = T(x) + T(0.5), py = T(y) + T(0.5);
+      const Vec3<T> ray = textured ? detail::PixelRayDirection(cam, px, py) : Vec3<T>{{T(0), T(0), T(1)}};
+      T transmittance = T(1);
+      Vec3<T> color{{T(0), T(0), T(0)}};
+      int last = 0;
+      for (int k = 0; k < count; ++k) {
+        const auto& sp = splats[k];
+        if (detail::GaussianPower(sp.conic, px - sp.mean2d[0], py - sp.mean2d[1]) < skip_below[k]) continue;
+        const detail::SplatSample<T> s = detail::EvaluateSplat(sp, px, py, ray);
+        if (!s.contributes) continue;
+        const T next = transmittance * (T(1) - s.alpha);
+        if (next < T(detail::kMinTransmittance)) break;
+        const T w = s.alpha * transmittance;
+        for (int ch = 0; ch < 3; ++ch) color[ch] += s.color[ch] * w;
+        if (weights != nullptr) weights[k] += w;
+        transmittance = next;
+        last = k + 1;
+      }
+      const size_t p = size_t(y) * width + x;
+      for (int ch = 0; ch < 3; ++ch) out->color[3 * p + ch] = color[ch] + transmittance * background[ch];
+      out->alpha[p] = T(1) - transmittance;
+      st.final_transmittance[p] = transmittance;
+      st.contributor_end[p] = last;
+    }
+  }
+}
+
+template <typename T>
 void RasterizeForward(const detail::CameraModel<T>& cam, const BasicTexturePool<T>* textures,
                       const RenderSettings& settings, BasicRenderOutput<T>* out) {
   auto& st = out->state;
@@ -23,56 +66,18 @@ void RasterizeForward(const detail::CameraModel<T>& cam, const BasicTexturePool<
   std::vector<T> entry_weight(st.tile_gaussians.size(), T(0));  // [E] Σ_pixels w of each (tile, Gaussian) pair
 
   const int tiles = cam.tiles_x * cam.tiles_y;
-  uint64_t longest = 0;
-  for (int t = 0; t < tiles; ++t) longest = std::max(longest, st.tile_ranges[t + 1] - st.tile_ranges[t]);
+  const uint64_t longest = LongestTile(*out);
   // Per-thread copy of the current tile's splats (gsplat's shared-memory batch).
   std::vector<detail::SplatParams<T>> scratch(size_t(MaxThreads()) * longest);  // [threads][longest]
   std::vector<T> scratch_skip(scratch.size());                                   // [threads][longest] SkipPowerBelow
   const Vec3<T> background{{T(settings.background[0]), T(settings.background[1]), T(settings.background[2])}};
-  const bool textured = textures != nullptr;
 
 #ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 1) if (tiles >= kMinParallelTiles)
 #endif
   for (int t = 0; t < tiles; ++t) {
-    const uint64_t begin = st.tile_ranges[t], end = st.tile_ranges[t + 1];
-    const int count = static_cast<int>(end - begin);
-    detail::SplatParams<T>* splats = scratch.data() + size_t(ThreadIndex()) * longest;
-    T* skip_below = scratch_skip.data() + size_t(ThreadIndex()) * longest;
-    for (int k = 0; k < count; ++k) {
-      splats[k] = MakeSplatParams(*out, textures, st.tile_gaussians[begin + k]);
-      skip_below[k] = SkipPowerBelow(splats[k]);
-    }
-    T* weights = entry_weight.data() + begin;
-    const int x0 = (t % cam.tiles_x) * detail::kTileSize, y0 = (t / cam.tiles_x) * detail::kTileSize;
-    const int x1 = std::min(x0 + detail::kTileSize, width), y1 = std::min(y0 + detail::kTileSize, height);
-    for (int y = y0; y < y1; ++y) {
-      for (int x = x0; x < x1; ++x) {
-        const T px = T(x) + T(0.5), py = T(y) + T(0.5);
-        const Vec3<T> ray = textured ? detail::PixelRayDirection(cam, px, py) : Vec3<T>{{T(0), T(0), T(1)}};
-        T transmittance = T(1);
-        Vec3<T> color{{T(0), T(0), T(0)}};
-        int last = 0;
-        for (int k = 0; k < count; ++k) {
-          const auto& sp = splats[k];
-          if (detail::GaussianPower(sp.conic, px - sp.mean2d[0], py - sp.mean2d[1]) < skip_below[k]) continue;
-          const detail::SplatSample<T> s = detail::EvaluateSplat(sp, px, py, ray);
-          if (!s.contributes) continue;
-          const T next = transmittance * (T(1) - s.alpha);
-          if (next < T(detail::kMinTransmittance)) break;
-          const T w = s.alpha * transmittance;
-          for (int ch = 0; ch < 3; ++ch) color[ch] += s.color[ch] * w;
-          weights[k] += w;
-          transmittance = next;
-          last = k + 1;
-        }
-        const size_t p = size_t(y) * width + x;
-        for (int ch = 0; ch < 3; ++ch) out->color[3 * p + ch] = color[ch] + transmittance * background[ch];
-        out->alpha[p] = T(1) - transmittance;
-        st.final_transmittance[p] = transmittance;
-        st.contributor_end[p] = last;
-      }
-    }
+    RasterizeTile(cam, textures, background, t, scratch.data() + size_t(ThreadIndex()) * longest,
+                  scratch_skip.data() + size_t(ThreadIndex()) * longest, entry_weight.data() + st.tile_ranges[t], out);
   }
 
   // Importance: the pairs' sums in ascending tile order (same result for any thread count).
@@ -94,5 +99,7 @@ template void RasterizeForward(const detail::CameraModel<float>&, const BasicTex
                                const RenderSettings&, BasicRenderOutput<float>*);
 template void RasterizeForward(const detail::CameraModel<double>&, const BasicTexturePool<double>*,
                                const RenderSettings&, BasicRenderOutput<double>*);
+template void RasterizeTile(const detail::CameraModel<float>&, const BasicTexturePool<float>*, const Vec3<float>&, int,
+                            detail::SplatParams<float>*, float*, float*, BasicRenderOutput<float>*);
 
 }  // namespace atex::render_internal

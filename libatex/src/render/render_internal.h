@@ -3,6 +3,7 @@
 // gradient by finite differences. Not part of the public API.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -38,6 +39,26 @@ Status BuildRenderState(const detail::CameraModel<T>& cam, const BasicGaussians<
 template <typename T>
 void RasterizeForward(const detail::CameraModel<T>& cam, const BasicTexturePool<T>* textures,
                       const RenderSettings& settings, BasicRenderOutput<T>* out);
+
+// Stage 3 for one tile `t`: composites its pixels into out->color, alpha,
+// state.final_transmittance and state.contributor_end (sized by the caller) and adds each
+// pair's Σ w to weights[k] for the tile's k-th entry (null: not wanted). `splats` and
+// `skip_below` are scratch of LongestTile(*out) entries. RasterizeForward is this over
+// every tile; the fitter's probe renderer (src/fit/cpu_probes.cc) calls it for the tiles
+// whose splats changed. Instantiated for float.
+template <typename T>
+void RasterizeTile(const detail::CameraModel<T>& cam, const BasicTexturePool<T>* textures,
+                   const detail::Vec3<T>& background, int t, detail::SplatParams<T>* splats, T* skip_below, T* weights,
+                   BasicRenderOutput<T>* out);
+
+// Entries of the longest tile list of a render state.
+template <typename T>
+inline uint64_t LongestTile(const BasicRenderOutput<T>& out) {
+  uint64_t longest = 0;
+  const auto& ranges = out.state.tile_ranges;
+  for (size_t t = 0; t + 1 < ranges.size(); ++t) longest = std::max(longest, ranges[t + 1] - ranges[t]);
+  return longest;
+}
 
 // Gradients of the rasteriser's inputs: per Gaussian the SplatGrad (mean2d, conic,
 // opacity, c_SH, texture frame) and the texel gradients [texel_count][4].
