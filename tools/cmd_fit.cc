@@ -1,17 +1,18 @@
 // `atex fit IN OUT`: trim an asset to a byte budget, a Gaussian count or a quality
-// floor. Thin front end over atex/fit.h (the method is described there and in docs/fit.md).
+// floor. Thin front end over atex/fit_run.h (the method is in atex/fit.h and docs/fit.md): parses,
+// calls fit::RunFit, writes the files and prints the report.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
-#include <numeric>
+#include <optional>
 
 #include "atex/container.h"
 #include "atex/dataset.h"
 #include "atex/file_io.h"
 #include "atex/fit.h"
-#include "atex/render.h"
+#include "atex/fit_run.h"
 #include "atex/train/trainer.h"
 #include "asset_view.h"
 #include "backend_select.h"
@@ -37,48 +38,6 @@ struct FitArgs {
 };
 
 using namespace atex;
-
-// Evenly spaced subset of `views` (all when count <= 0 or count >= size).
-std::vector<View> Spread(const std::vector<View>& views, int count) {
-  if (count <= 0 || static_cast<size_t>(count) >= views.size()) return views;
-  std::vector<View> out;
-  for (int k = 0; k < count; ++k) out.push_back(views[static_cast<size_t>(k) * views.size() / count]);
-  return out;
-}
-
-StatusOr<train::EvalResult> EvaluateAsset(const Dataset& dataset, train::Backend& backend, const Asset& asset,
-                                          const std::vector<View>& views) {
-  ATEX_RETURN_IF_ERROR(backend.Load(train::StateFromAsset(asset)));
-  return train::Evaluate(dataset, backend, views, train::RenderRequestFor(asset));
-}
-
-nlohmann::json MetricsJson(const train::EvalResult& e) {
-  return {{"psnr", e.mean.psnr}, {"ssim", e.mean.ssim}, {"dssim1", e.mean.dssim1}, {"dssim2", e.mean.dssim2},
-          {"views", e.views.size()}};
-}
-
-// What each lever removed between two assets.
-nlohmann::json LeverSummary(const Asset& before, const Asset& after, const WriteOptions& write) {
-  nlohmann::json j;
-  j["gaussians"] = {{"before", before.gaussians.size()}, {"after", after.gaussians.size()}};
-  j["sh_degree"] = {{"before", before.gaussians.sh_degree}, {"after", after.gaussians.sh_degree}};
-  if (before.textures) {
-    j["texels"] = {{"before", before.textures->texel_count()},
-                   {"after", after.textures ? after.textures->texel_count() : 0}};
-  }
-  if (before.deformation && after.deformation) {
-    const auto& b = before.deformation->config.grid.base_resolution;
-    const auto& a = after.deformation->config.grid.base_resolution;
-    j["grid_resolution"] = {{"before", {b[0], b[1], b[2], b[3]}}, {"after", {a[0], a[1], a[2], a[3]}}};
-  }
-  nlohmann::json enc = nlohmann::json::object();
-  for (int s = 0; s < static_cast<int>(fit::Stream::kCount); ++s) {
-    enc[fit::StreamName(static_cast<fit::Stream>(s))] =
-        ScalarEncodingName(fit::GetEncoding(write, static_cast<fit::Stream>(s)));
-  }
-  j["encodings"] = enc;
-  return j;
-}
 
 int RunFit(const FitArgs& a) {
   const char* cmd = "fit";
@@ -115,34 +74,43 @@ int RunFit(const FitArgs& a) {
     std::cerr << "atex fit: --finetune takes one budget\n";
     return cli::kExitUsage;
   }
-  const uint64_t budget = budgets.empty() ? 0 : *std::min_element(budgets.begin(), budgets.end());
   auto levers = fit::ParseLevers(a.levers);
   if (!levers.ok()) return cli::Fail(cmd, levers.status().WithContext("--levers"));
 
-  // Wall seconds per phase, for the report: where a long fit spends its time.
-  nlohmann::json phase_seconds = nlohmann::json::object();
-  auto phase_start = std::chrono::steady_clock::now();
-  const auto phase_done = [&](const char* name) {
-    const auto now = std::chrono::steady_clock::now();
-    phase_seconds[name] = phase_seconds.value(name, 0.0) + std::chrono::duration<double>(now - phase_start).count();
-    phase_start = now;
+  fit::FitRunOptions o;
+  o.budgets = budgets;
+  o.keep_count = a.keep_count;
+  o.quality = a.quality;
+  o.probes = a.probes;
+  o.probe_size = a.probe_size;
+  o.eval_views = a.eval_views;
+  o.finetune = a.finetune;
+  o.keep_stats = a.keep_stats;
+  o.seed = a.seed;
+  o.levers = *levers;
+  o.progress = [&](const fit::FitProgress& p) {
+    if (!a.json) std::cerr << "atex fit: move " << p.move << ": " << p.text << "\n";
   };
+  std::optional<cli::Progress> bar;
+  if (a.finetune > 0) bar.emplace("finetune", a.finetune);
+  o.finetune_progress = [&](const train::TrainProgress& p) {
+    if (p.event.empty() && bar) bar->Update(p.step, "PSNR " + std::to_string(p.psnr));
+    return true;
+  };
+  if (Status s = fit::ValidateFitRunOptions(o, !a.data.empty()); !s.ok()) return cli::Fail(cmd, s);
 
   auto input_bytes = ReadFileBytes(a.input);
   if (!input_bytes.ok()) return cli::Fail(cmd, input_bytes.status().WithContext(a.input));
-  auto decoded = DecodeAsset(input_bytes->data(), input_bytes->size());
-  if (!decoded.ok()) return cli::Fail(cmd, decoded.status().WithContext(a.input));
-  Asset input = std::move(*decoded);
-  WriteOptions base;
-  base.write_stats = a.keep_stats;
-  auto write = fit::EncodingsOfFile(input_bytes->data(), input_bytes->size(), base);
-  if (!write.ok()) return cli::Fail(cmd, write.status().WithContext(a.input));
-  phase_done("read_input");
-
+  std::optional<Asset> order_from;
+  if (!a.order_from.empty()) {
+    auto reference = ReadAssetFile(a.order_from);
+    if (!reference.ok()) return cli::Fail(cmd, reference.status().WithContext(a.order_from));
+    order_from = std::move(*reference);
+    o.order_from = &*order_from;
+  }
   auto backend = cli::SelectBackend(a.backend);
   if (!backend.ok()) return cli::Fail(cmd, backend.status());
   if (!backend->note.empty()) std::cerr << "atex fit: " << backend->note << "\n";
-
   std::unique_ptr<Dataset> dataset;
   if (!a.data.empty()) {
     auto opened = cli::OpenDatasetArgs(a.data, a.dataset);
@@ -150,135 +118,10 @@ int RunFit(const FitArgs& a) {
     dataset = std::move(*opened);
   }
 
-  // Probes: training views (scaled down) with a dataset, orbit views without.
-  std::vector<fit::Probe> probes;
-  if (dataset) {
-    for (const View& v : Spread(dataset->train_views(), a.probes)) probes.push_back({fit::ScaleCamera(v.camera, a.probe_size)});
-  } else {
-    probes = fit::OrbitProbes(input, a.probes, a.probe_size, std::max(1, a.probe_size * 3 / 4));
-  }
-  if (Status s = fit::EnsureImportance(&input, probes); !s.ok()) return cli::Fail(cmd, s);
-  phase_done("backend_dataset_probes");
-
-  nlohmann::json report;
-  report["input"] = {{"path", a.input}, {"bytes", input_bytes->size()}, {"components", fit::ComponentsToJson(*input_bytes)}};
-  report["backend"] = backend->description;
-  report["distortion"] = dataset ? "mean squared difference to the input's renders of training views"
-                                 : "mean squared difference to the input's renders of orbit views (proxy)";
-
-  const std::vector<View> eval_views = dataset ? Spread(dataset->test_views(), a.eval_views) : std::vector<View>{};
-  if (dataset && !eval_views.empty()) {
-    auto before = EvaluateAsset(*dataset, *backend->backend, input, eval_views);
-    if (!before.ok()) return cli::Fail(cmd, before.status());
-    report["input"]["test"] = MetricsJson(*before);
-    phase_done("evaluate_input");
-  }
-
-  // Fixed-count protocol first (it may be combined with a budget).
-  Asset working = input;
-  std::vector<uint32_t> kept(input.gaussians.size());
-  std::iota(kept.begin(), kept.end(), 0u);
-  if (a.keep_count > 0) {
-    std::vector<uint32_t> order;
-    if (!a.order_from.empty()) {
-      auto reference = ReadAssetFile(a.order_from);
-      if (!reference.ok()) return cli::Fail(cmd, reference.status().WithContext(a.order_from));
-      if (Status s = fit::EnsureImportance(&*reference, probes); !s.ok()) return cli::Fail(cmd, s);
-      order = fit::ImportanceOrder(*reference, a.seed);
-    } else {
-      order = fit::ImportanceOrder(input, a.seed);
-    }
-    auto subset = fit::KeepMostImportant(input, order, a.keep_count, &kept);
-    if (!subset.ok()) return cli::Fail(cmd, subset.status());
-    working = std::move(*subset);
-    report["keep_count"] = {{"fraction", a.keep_count}, {"kept", working.gaussians.size()},
-                            {"order_from", a.order_from.empty() ? a.input : a.order_from}};
-  }
-
-  fit::ProbeRenderer renderer(backend->backend.get(), probes);
-  fit::Plan shared_plan;
-  nlohmann::json plan_timings = nlohmann::json::array();  // one per plan built (two with --finetune)
-  const auto fit_once = [&](const Asset& start, const WriteOptions& start_write, uint64_t target,
-                            bool quality_mode) -> StatusOr<fit::Fitted> {
-    fit::PlanOptions o;
-    o.write = start_write;
-    o.seed = a.seed;
-    o.floor_bytes = quality_mode ? 0 : target;
-    o.levers = *levers;
-    o.progress = [&](const fit::FitProgress& p) {
-      if (!a.json) std::cerr << "atex fit: move " << p.move << ": " << p.text << "\n";
-    };
-    if (quality_mode) {
-      o.accept_more = [&](const Asset& candidate, const fit::Move&) -> StatusOr<bool> {
-        ATEX_ASSIGN_OR_RETURN(train::EvalResult e, EvaluateAsset(*dataset, *backend->backend, candidate, eval_views));
-        return e.mean.psnr >= a.quality;
-      };
-    } else {
-      ATEX_RETURN_IF_ERROR(fit::CheckBudget(start, start_write, target, o.min_grid_resolution, o.levers));
-    }
-    ATEX_ASSIGN_OR_RETURN(fit::Plan plan, fit::BuildPlan(start, &renderer, o));
-    shared_plan = plan;
-    const uint64_t goal = quality_mode ? (plan.moves.empty() ? plan.initial_bytes : plan.moves.back().bytes_after) : target;
-    auto fitted = fit::ApplyPlan(start, plan, start_write, goal);
-    nlohmann::json timing = fit::TimingToJson(plan.timing);
-    if (fitted.ok()) {
-      timing["apply_plan_seconds"] = fitted->apply_seconds;
-      timing["refill_seconds"] = fitted->refill_seconds;
-    }
-    plan_timings.push_back(std::move(timing));
-    return fitted;
-  };
-
-  fit::Fitted result;
-  if (!a.budget.empty() || a.quality > 0) {
-    auto fitted = fit_once(working, *write, budget, a.quality > 0);
-    if (!fitted.ok()) return cli::Fail(cmd, fitted.status());
-    for (uint32_t& k : fitted->kept) k = kept[k];  // back to input indices
-    result = std::move(*fitted);
-  } else {
-    auto bytes = EncodeAsset(working, *write);
-    if (!bytes.ok()) return cli::Fail(cmd, bytes.status());
-    result.asset = working;
-    result.bytes = std::move(*bytes);
-    result.write = *write;
-    result.kept = kept;
-  }
-  phase_done("fit");  // plan and apply, or the encode of a --keep-count subset
-
-  if (a.finetune > 0) {
-    // Retrain the trimmed model (topology and texture sizes fixed), then fit again.
-    train::TrainerOptions topts;
-    topts.config = train::DefaultConfig(dataset->kind() == DatasetKind::kPanoptic ? "panoptic" : "dnerf");
-    topts.config.seed = a.seed;
-    topts.config.stage1.sh_degree = result.asset.gaussians.sh_degree;
-    topts.config.stage2.iterations = a.finetune;
-    topts.config.stage2.growth_steps.clear();
-    topts.config.background = result.asset.metadata.background;
-    auto mode = ParseTextureMode(result.asset.metadata.texture_mode);
-    topts.config.stage2.textures = mode.ok() ? *mode : TextureMode::kNone;
-    if (!result.asset.textures) topts.config.stage2.textures = TextureMode::kNone;
-    topts.config.eval_every = 0;
-    topts.config.checkpoint_every = 0;
-    topts.stages = train::kStage2;
-    cli::Progress bar("finetune", a.finetune);
-    topts.progress = [&](const train::TrainProgress& p) {
-      if (p.event.empty()) bar.Update(p.step, "PSNR " + std::to_string(p.psnr));
-      return true;
-    };
-    auto tuned = train::Train(*dataset, *backend->backend, topts, &result.asset);
-    bar.Finish();
-    if (!tuned.ok()) return cli::Fail(cmd, tuned.status());
-    Asset retrained = std::move(tuned->asset);
-    retrained.metadata = result.asset.metadata;
-    const uint64_t target = a.budget.empty() ? ~uint64_t{0} : budget;
-    auto refit = fit_once(retrained, result.write, target, false);
-    if (!refit.ok()) return cli::Fail(cmd, refit.status().WithContext("re-fit after fine-tuning"));
-    for (uint32_t& k : refit->kept) k = result.kept[k];
-    report["finetune"] = {{"steps", a.finetune}, {"seconds", tuned->textures_seconds},
-                          {"refit_moves", refit->moves.size()}};
-    result = std::move(*refit);
-    phase_done("finetune_and_refit");
-  }
+  auto run = fit::RunFit(*input_bytes, dataset.get(), backend->backend.get(), o);
+  if (bar) bar->Finish();
+  if (!run.ok()) return cli::Fail(cmd, run.status().WithContext(a.input));
+  nlohmann::json& report = run->json;
 
   const auto output_for = [&](size_t k) {
     std::string path = a.output;
@@ -286,69 +129,40 @@ int RunFit(const FitArgs& a) {
     if (brace != std::string::npos) path.replace(brace, 2, budget_texts.empty() ? "fit" : budget_texts[k]);
     return path;
   };
-  // The other budgets of a list reuse the plan built for the smallest one.
-  nlohmann::json others = nlohmann::json::array();
-  for (size_t k = 0; k < budgets.size(); ++k) {
-    if (budgets[k] == budget) continue;
-    auto fitted = fit::ApplyPlan(working, shared_plan, *write, budgets[k]);
-    if (!fitted.ok()) return cli::Fail(cmd, fitted.status());
-    const std::string path = output_for(k);
-    if (Status s = WriteFileAtomic(path, fitted->bytes); !s.ok()) return cli::Fail(cmd, s.WithContext(path));
-    nlohmann::json o = {{"path", path}, {"budget_bytes", budgets[k]}, {"bytes", fitted->bytes.size()},
-                        {"components", fit::ComponentsToJson(fitted->bytes)},
-                        {"levers", LeverSummary(input, fitted->asset, fitted->write)}};
-    if (dataset && !eval_views.empty()) {
-      auto after = EvaluateAsset(*dataset, *backend->backend, fitted->asset, eval_views);
-      if (!after.ok()) return cli::Fail(cmd, after.status());
-      o["test"] = MetricsJson(*after);
-    }
-    if (!a.json) std::printf("wrote %s: %zu bytes\n", path.c_str(), fitted->bytes.size());
-    others.push_back(o);
-  }
-  size_t smallest_index = 0;
+  // outputs[0] is the smallest budget's; the others follow in the order given.
+  std::vector<std::string> paths;
+  paths.push_back(output_for(run->main_budget_index));
   for (size_t k = 0; k < budgets.size(); ++k)
-    if (budgets[k] == budget) smallest_index = k;
-  const std::string output_path = output_for(smallest_index);
-  if (Status s = WriteFileAtomic(output_path, result.bytes); !s.ok()) return cli::Fail(cmd, s.WithContext(output_path));
-  if (!others.empty()) report["other_budgets"] = others;
-  phase_done("other_budgets_and_write");
+    if (k != run->main_budget_index) paths.push_back(output_for(k));
+  for (size_t j = 1; j <= run->outputs.size(); ++j) {  // the others first, then the main output
+    const size_t k = j % run->outputs.size();
+    const std::vector<uint8_t>& bytes = run->outputs[k].fitted.bytes;
+    if (Status s = WriteFileAtomic(paths[k], bytes); !s.ok()) return cli::Fail(cmd, s.WithContext(paths[k]));
+    if (k > 0) {
+      report["other_budgets"][k - 1]["path"] = paths[k];
+      if (!a.json) std::printf("wrote %s: %zu bytes\n", paths[k].c_str(), bytes.size());
+    }
+  }
+  report["input"]["path"] = a.input;
+  report["output"]["path"] = paths[0];
+  report["backend"] = backend->description;
+  if (report.contains("keep_count")) report["keep_count"]["order_from"] = a.order_from.empty() ? a.input : a.order_from;
 
-  report["output"] = {{"path", output_path}, {"bytes", result.bytes.size()}, {"components", fit::ComponentsToJson(result.bytes)}};
-  if (!a.budget.empty()) report["budget_bytes"] = budget;
-  if (a.quality > 0) report["quality_floor_psnr"] = a.quality;
-  report["levers"] = LeverSummary(input, result.asset, result.write);
-  if (!a.budget.empty() || a.quality > 0) {  // a plan was built
-    report["levers"]["allowed"] = fit::LeverSetNames(*levers);
-  }
-  nlohmann::json moves = nlohmann::json::array();
-  for (const fit::Move& m : result.moves) moves.push_back(fit::MoveToJson(m));
-  report["moves"] = moves;
-  if (!plan_timings.empty()) report["plan_timing"] = plan_timings;
-  if (!result.moves.empty()) {
-    const double d = result.moves.back().distortion_after;
-    report["estimated_psnr_vs_input"] = d > 0 ? -10.0 * std::log10(d) : 99.0;
-  }
-  if (dataset && !eval_views.empty()) {
-    auto after = EvaluateAsset(*dataset, *backend->backend, result.asset, eval_views);
-    if (!after.ok()) return cli::Fail(cmd, after.status());
-    report["output"]["test"] = MetricsJson(*after);
-    phase_done("evaluate_output");
-  }
-  report["seconds"] = phase_seconds;
+  const fit::Fitted& result = run->outputs[0].fitted;
   if (a.json) {
     cli::PrintJson(report);
   } else {
-    std::printf("wrote %s: %zu bytes (%.3f MiB) from %zu bytes; %zu of %zu Gaussians kept\n", output_path.c_str(),
+    std::printf("wrote %s: %zu bytes (%.3f MiB) from %zu bytes; %zu of %s Gaussians kept\n", paths[0].c_str(),
                 result.bytes.size(), result.bytes.size() / 1048576.0, input_bytes->size(),
-                result.asset.gaussians.size(), input.gaussians.size());
+                result.asset.gaussians.size(), report["levers"]["gaussians"]["before"].dump().c_str());
     for (const fit::Move& m : result.moves) {
       std::printf("  %-45s -> %10llu bytes, proxy PSNR %.2f dB\n", fit::DescribeMove(m).c_str(),
                   static_cast<unsigned long long>(m.bytes_after),
                   m.distortion_after > 0 ? -10.0 * std::log10(m.distortion_after) : 99.0);
     }
     if (report["input"].contains("test") && report["output"].contains("test")) {
-      std::printf("test PSNR %.3f -> %.3f dB over %zu views\n", report["input"]["test"]["psnr"].get<double>(),
-                  report["output"]["test"]["psnr"].get<double>(), eval_views.size());
+      std::printf("test PSNR %.3f -> %.3f dB over %d views\n", report["input"]["test"]["psnr"].get<double>(),
+                  report["output"]["test"]["psnr"].get<double>(), report["output"]["test"]["views"].get<int>());
     }
   }
   return cli::kExitOk;

@@ -11,6 +11,7 @@ list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/probes.cc
   ${CMAKE_CURRENT_LIST_DIR}/refill.cc
   ${CMAKE_CURRENT_LIST_DIR}/report.cc
+  ${CMAKE_CURRENT_LIST_DIR}/run.cc
   ${CMAKE_CURRENT_LIST_DIR}/texture_shrink.cc)
 function(atex_fit_tests)
   set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
