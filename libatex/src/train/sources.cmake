@@ -20,4 +20,7 @@ function(atex_train_tests)
   # The loop on the real tiny lego (CPU backend): a few minutes, its own executable so that
   # CTest runs it beside the others.
   atex_add_test(NAME train_lego_test LIBS atex SOURCES ${dir}/trainer_test.cc TIMEOUT 2400)
+  # The loop on a synthetic moving ball (no data needed): resume, rollback, time limit,
+  # phase order, growth.
+  atex_add_test(NAME train_synthetic_test LIBS atex SOURCES ${dir}/trainer_synthetic_test.cc)
 endfunction()
