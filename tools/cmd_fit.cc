@@ -39,6 +39,57 @@ struct FitArgs {
 
 using namespace atex;
 
+// Writes the fitted files (atomically) and prints the report: JSON with --json, else a summary.
+int WriteAndPrint(const FitArgs& a, const std::vector<std::string>& budget_texts, size_t input_size,
+                  const std::string& backend_description, fit::FitRunReport* run) {
+  const char* cmd = "fit";
+  nlohmann::json& report = run->json;
+
+  const auto output_for = [&](size_t k) {
+    std::string path = a.output;
+    const size_t brace = path.find("{}");
+    if (brace != std::string::npos) path.replace(brace, 2, budget_texts.empty() ? "fit" : budget_texts[k]);
+    return path;
+  };
+  // outputs[0] is the smallest budget's; the others follow in the order given.
+  std::vector<std::string> paths;
+  paths.push_back(output_for(run->main_budget_index));
+  for (size_t k = 0; k < budget_texts.size(); ++k)
+    if (k != run->main_budget_index) paths.push_back(output_for(k));
+  for (size_t j = 1; j <= run->outputs.size(); ++j) {  // the others first, then the main output
+    const size_t k = j % run->outputs.size();
+    const std::vector<uint8_t>& bytes = run->outputs[k].fitted.bytes;
+    if (Status s = WriteFileAtomic(paths[k], bytes); !s.ok()) return cli::Fail(cmd, s.WithContext(paths[k]));
+    if (k > 0) {
+      report["other_budgets"][k - 1]["path"] = paths[k];
+      if (!a.json) std::printf("wrote %s: %zu bytes\n", paths[k].c_str(), bytes.size());
+    }
+  }
+  report["input"]["path"] = a.input;
+  report["output"]["path"] = paths[0];
+  report["backend"] = backend_description;
+  if (report.contains("keep_count")) report["keep_count"]["order_from"] = a.order_from.empty() ? a.input : a.order_from;
+
+  const fit::Fitted& result = run->outputs[0].fitted;
+  if (a.json) {
+    cli::PrintJson(report);
+  } else {
+    std::printf("wrote %s: %zu bytes (%.3f MiB) from %zu bytes; %zu of %s Gaussians kept\n", paths[0].c_str(),
+                result.bytes.size(), result.bytes.size() / 1048576.0, input_size,
+                result.asset.gaussians.size(), report["levers"]["gaussians"]["before"].dump().c_str());
+    for (const fit::Move& m : result.moves) {
+      std::printf("  %-45s -> %10llu bytes, proxy PSNR %.2f dB\n", fit::DescribeMove(m).c_str(),
+                  static_cast<unsigned long long>(m.bytes_after),
+                  m.distortion_after > 0 ? -10.0 * std::log10(m.distortion_after) : 99.0);
+    }
+    if (report["input"].contains("test") && report["output"].contains("test")) {
+      std::printf("test PSNR %.3f -> %.3f dB over %d views\n", report["input"]["test"]["psnr"].get<double>(),
+                  report["output"]["test"]["psnr"].get<double>(), report["output"]["test"]["views"].get<int>());
+    }
+  }
+  return cli::kExitOk;
+}
+
 int RunFit(const FitArgs& a) {
   const char* cmd = "fit";
   const int modes = (!a.budget.empty()) + (a.quality > 0);
@@ -121,51 +172,7 @@ int RunFit(const FitArgs& a) {
   auto run = fit::RunFit(*input_bytes, dataset.get(), backend->backend.get(), o);
   if (bar) bar->Finish();
   if (!run.ok()) return cli::Fail(cmd, run.status().WithContext(a.input));
-  nlohmann::json& report = run->json;
-
-  const auto output_for = [&](size_t k) {
-    std::string path = a.output;
-    const size_t brace = path.find("{}");
-    if (brace != std::string::npos) path.replace(brace, 2, budget_texts.empty() ? "fit" : budget_texts[k]);
-    return path;
-  };
-  // outputs[0] is the smallest budget's; the others follow in the order given.
-  std::vector<std::string> paths;
-  paths.push_back(output_for(run->main_budget_index));
-  for (size_t k = 0; k < budgets.size(); ++k)
-    if (k != run->main_budget_index) paths.push_back(output_for(k));
-  for (size_t j = 1; j <= run->outputs.size(); ++j) {  // the others first, then the main output
-    const size_t k = j % run->outputs.size();
-    const std::vector<uint8_t>& bytes = run->outputs[k].fitted.bytes;
-    if (Status s = WriteFileAtomic(paths[k], bytes); !s.ok()) return cli::Fail(cmd, s.WithContext(paths[k]));
-    if (k > 0) {
-      report["other_budgets"][k - 1]["path"] = paths[k];
-      if (!a.json) std::printf("wrote %s: %zu bytes\n", paths[k].c_str(), bytes.size());
-    }
-  }
-  report["input"]["path"] = a.input;
-  report["output"]["path"] = paths[0];
-  report["backend"] = backend->description;
-  if (report.contains("keep_count")) report["keep_count"]["order_from"] = a.order_from.empty() ? a.input : a.order_from;
-
-  const fit::Fitted& result = run->outputs[0].fitted;
-  if (a.json) {
-    cli::PrintJson(report);
-  } else {
-    std::printf("wrote %s: %zu bytes (%.3f MiB) from %zu bytes; %zu of %s Gaussians kept\n", paths[0].c_str(),
-                result.bytes.size(), result.bytes.size() / 1048576.0, input_bytes->size(),
-                result.asset.gaussians.size(), report["levers"]["gaussians"]["before"].dump().c_str());
-    for (const fit::Move& m : result.moves) {
-      std::printf("  %-45s -> %10llu bytes, proxy PSNR %.2f dB\n", fit::DescribeMove(m).c_str(),
-                  static_cast<unsigned long long>(m.bytes_after),
-                  m.distortion_after > 0 ? -10.0 * std::log10(m.distortion_after) : 99.0);
-    }
-    if (report["input"].contains("test") && report["output"].contains("test")) {
-      std::printf("test PSNR %.3f -> %.3f dB over %d views\n", report["input"]["test"]["psnr"].get<double>(),
-                  report["output"]["test"]["psnr"].get<double>(), report["output"]["test"]["views"].get<int>());
-    }
-  }
-  return cli::kExitOk;
+  return WriteAndPrint(a, budget_texts, input_bytes->size(), backend->description, &*run);
 }
 
 atex::cli::Runner SetupFit(CLI::App& app) {
