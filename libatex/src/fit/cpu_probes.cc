@@ -209,21 +209,25 @@ Status CpuProbeRenderer::Deform(const DeformationField& field, const Gaussians& 
   return Status::Ok();
 }
 
-StatusOr<std::vector<Image>> CpuProbeRenderer::Render(const Asset& asset, const std::vector<Camera>& cameras,
-                                                      const train::RenderRequest& request) {
+StatusOr<CpuProbeRenderer::Prepared> CpuProbeRenderer::Prepare(const Asset& asset, const std::vector<Camera>& cameras,
+                                                               const train::RenderRequest& request) {
   ++renders_;
-  RenderSettings settings;
-  settings.background = request.background;
-  settings.near_plane = request.near_plane;
-  settings.active_sh_degree = request.active_sh_degree;
-  const TexturePool* textures = request.use_textures && asset.textures ? &*asset.textures : nullptr;
-  std::vector<Gaussians> deformed;
-  const bool deform = request.apply_deformation && asset.deformation.has_value();
-  if (deform) {
+  Prepared in;
+  in.settings.background = request.background;
+  in.settings.near_plane = request.near_plane;
+  in.settings.active_sh_degree = request.active_sh_degree;
+  in.textures = request.use_textures && asset.textures ? &*asset.textures : nullptr;
+  if (request.apply_deformation && asset.deformation.has_value()) {
     std::vector<double> times;
     for (const Camera& c : cameras) times.push_back(c.time);
-    ATEX_RETURN_IF_ERROR(Deform(*asset.deformation, asset.gaussians, times, &deformed));
+    ATEX_RETURN_IF_ERROR(Deform(*asset.deformation, asset.gaussians, times, &in.deformed));
   }
+  return in;
+}
+
+StatusOr<std::vector<Image>> CpuProbeRenderer::Render(const Asset& asset, const std::vector<Camera>& cameras,
+                                                      const train::RenderRequest& request) {
+  ATEX_ASSIGN_OR_RETURN(Prepared in, Prepare(asset, cameras, request));
   bool same_cameras = cameras_.size() == cameras.size();
   for (size_t k = 0; same_cameras && k < cameras.size(); ++k) same_cameras = SameCamera(cameras_[k], cameras[k]);
   if (!same_cameras) {
@@ -233,8 +237,7 @@ StatusOr<std::vector<Image>> CpuProbeRenderer::Render(const Asset& asset, const 
   std::vector<Image> images;
   images.reserve(cameras.size());
   for (size_t k = 0; k < cameras.size(); ++k) {
-    const Gaussians& shown = deform ? deformed[k] : asset.gaussians;
-    ATEX_ASSIGN_OR_RETURN(Image image, RenderProbe(k, cameras[k], shown, textures, settings));
+    ATEX_ASSIGN_OR_RETURN(Image image, RenderProbe(k, cameras[k], in.shown(asset, k), in.textures, in.settings));
     images.push_back(std::move(image));
   }
   return images;
@@ -242,23 +245,11 @@ StatusOr<std::vector<Image>> CpuProbeRenderer::Render(const Asset& asset, const 
 
 StatusOr<std::vector<float>> CpuProbeRenderer::Importance(const Asset& asset, const std::vector<Camera>& cameras,
                                                           const train::RenderRequest& request) {
-  ++renders_;
-  RenderSettings settings;
-  settings.background = request.background;
-  settings.near_plane = request.near_plane;
-  settings.active_sh_degree = request.active_sh_degree;
-  const TexturePool* textures = request.use_textures && asset.textures ? &*asset.textures : nullptr;
-  std::vector<Gaussians> deformed;
-  const bool deform = request.apply_deformation && asset.deformation.has_value();
-  if (deform) {
-    std::vector<double> times;
-    for (const Camera& c : cameras) times.push_back(c.time);
-    ATEX_RETURN_IF_ERROR(Deform(*asset.deformation, asset.gaussians, times, &deformed));
-  }
+  ATEX_ASSIGN_OR_RETURN(Prepared in, Prepare(asset, cameras, request));
   std::vector<float> importance(asset.gaussians.size(), 0.0f);
   for (size_t k = 0; k < cameras.size(); ++k) {
-    const Gaussians& shown = deform ? deformed[k] : asset.gaussians;
-    ATEX_ASSIGN_OR_RETURN(RenderOutput out, RenderForward<float>(cameras[k], shown, textures, settings));
+    ATEX_ASSIGN_OR_RETURN(RenderOutput out,
+                          RenderForward<float>(cameras[k], in.shown(asset, k), in.textures, in.settings));
     for (size_t i = 0; i < importance.size(); ++i) importance[i] += out.importance[i];
   }
   return importance;

@@ -78,6 +78,15 @@ class CpuProbeRenderer {
   // entries than the asset has Gaussians.
   void Evict(size_t gaussians);
 
+  // The render settings of `request` and the Gaussians deformed to each camera's time.
+  struct Prepared {
+    RenderSettings settings;
+    const TexturePool* textures = nullptr;
+    std::vector<Gaussians> deformed;  // [camera], empty for a static render
+    const Gaussians& shown(const Asset& asset, size_t k) const { return deformed.empty() ? asset.gaussians : deformed[k]; }
+  };
+  StatusOr<Prepared> Prepare(const Asset& asset, const std::vector<Camera>& cameras,
+                             const train::RenderRequest& request);
   // One probe's image from `g` (already deformed), composited tile by tile through the cache.
   StatusOr<Image> RenderProbe(size_t probe, const Camera& camera, const Gaussians& g, const TexturePool* textures,
                               const RenderSettings& settings);

@@ -13,6 +13,8 @@
 #include "atex/train/checkpoint.h"
 #include "atex/train/trainer.h"
 #include "core/test_support.h"
+#include "train/forwarding_backend.h"
+#include "train/trainer_test_util.h"
 
 namespace atex::train {
 namespace {
@@ -77,6 +79,14 @@ std::unique_ptr<Dataset> MovingBall() {
   return dataset.ok() ? std::move(*dataset) : nullptr;
 }
 
+// A progress callback that appends each phase's name once, in the order they run.
+ProgressCallback RecordPhases(std::vector<std::string>* phases) {
+  return [phases](const TrainProgress& p) {
+    if (p.event.empty() && (phases->empty() || phases->back() != p.phase)) phases->push_back(p.phase);
+    return true;
+  };
+}
+
 // A few dozen steps of every phase on a small model.
 TrainConfig TinyConfig() {
   TrainConfig c = DefaultConfig("dnerf");
@@ -103,10 +113,7 @@ TEST(TrainerSynthetic, PhasesRunInOrderAndTexturesGrow) {
   options.config = TinyConfig();
   options.log_every = 1;
   std::vector<std::string> phases;
-  options.progress = [&](const TrainProgress& p) {
-    if (p.event.empty() && (phases.empty() || phases.back() != p.phase)) phases.push_back(p.phase);
-    return true;
-  };
+  options.progress = RecordPhases(&phases);
   auto backend = MakeCpuBackend();
   auto trained = Train(*data, *backend, options);
   ASSERT_TRUE(trained.ok()) << trained.status().ToString();
@@ -132,72 +139,14 @@ TEST(TrainerSynthetic, ResumeAfterAnInterruptedRunReproducesTheUninterruptedOne)
   auto data = MovingBall();
   ASSERT_NE(data, nullptr);
   testing::TempDir dir;
-  TrainerOptions full;
-  full.config = TinyConfig();
-  full.config.checkpoint_every = 5;
-  full.stages = kStage1;
-  auto b1 = MakeCpuBackend();
-  auto straight = Train(*data, *b1, full);
-  ASSERT_TRUE(straight.ok()) << straight.status().ToString();
-
-  // The run is killed at fine step 10 (the progress callback stops it; the last checkpoint is
-  // written), then a new process resumes from the checkpoint folder.
-  TrainerOptions part = full;
-  part.checkpoint_dir = (dir / "ckpt").string();
-  part.log_every = 5;
-  part.progress = [](const TrainProgress& p) { return !(p.phase == "fine" && p.step == 10); };
-  auto b2 = MakeCpuBackend();
-  auto stopped = Train(*data, *b2, part);
-  ASSERT_EQ(stopped.status().code(), StatusCode::kCancelled) << stopped.status().ToString();
-  auto checkpoint = ReadCheckpoint(part.checkpoint_dir);
-  ASSERT_TRUE(checkpoint.ok()) << checkpoint.status().ToString();
-  EXPECT_EQ(checkpoint->trainer.value("phase", ""), "fine");
-
-  TrainerOptions resume = full;
-  resume.resume_dir = part.checkpoint_dir;
-  auto b3 = MakeCpuBackend();
-  auto resumed = Train(*data, *b3, resume);
-  ASSERT_TRUE(resumed.ok()) << resumed.status().ToString();
-  EXPECT_EQ(resumed->asset.gaussians.positions, straight->asset.gaussians.positions);
-  EXPECT_EQ(resumed->asset.gaussians.sh, straight->asset.gaussians.sh);
-  ASSERT_TRUE(resumed->asset.deformation && straight->asset.deformation);
-  EXPECT_EQ(resumed->asset.deformation->trunk[0].weight, straight->asset.deformation->trunk[0].weight);
+  TrainConfig config = TinyConfig();
+  config.checkpoint_every = 5;
+  // Killed at fine step 10 (the last checkpoint written), then a new process resumes.
+  ExpectResumeReproducesTheStraightRun(*data, config, 10, dir.path());
 }
 
 // The CPU backend, except that one step reports a non-finite loss (and applies nothing).
-class OneBadStep final : public Backend {
- public:
-  explicit OneBadStep(int bad_step) : inner_(MakeCpuBackend()), bad_step_(bad_step) {}
-  std::string name() const override { return "one-bad-step"; }
-  Status Load(const ModelState& s) override {
-    ++loads_;
-    return inner_->Load(s);
-  }
-  Status Save(ModelState* s) override { return inner_->Save(s); }
-  Status ReadGaussians(Gaussians* g) override { return inner_->ReadGaussians(g); }
-  StatusOr<StepResult> Step(const StepRequest& r, std::span<const TrainView> v) override {
-    if (steps_++ == bad_step_) {
-      StepResult bad;
-      bad.loss = std::numeric_limits<double>::quiet_NaN();
-      bad.finite = false;
-      return bad;
-    }
-    return inner_->Step(r, v);
-  }
-  Status ReadGradients(ModelState* g) override { return inner_->ReadGradients(g); }
-  Status ReadStats(int k, TrainingStats* s) override { return inner_->ReadStats(k, s); }
-  Status ResetStats(int k) override { return inner_->ResetStats(k); }
-  Status ApplyEdit(const GaussianEdit& e) override { return inner_->ApplyEdit(e); }
-  Status AttachTextures(const TexturePool& l) override { return inner_->AttachTextures(l); }
-  Status ResizeTextures(const TextureResize& r) override { return inner_->ResizeTextures(r); }
-  StatusOr<Image> Render(const Camera& c, const RenderRequest& r) override { return inner_->Render(c, r); }
-  int loads_ = 0;
-
- private:
-  std::unique_ptr<Backend> inner_;
-  int bad_step_;
-  int steps_ = 0;
-};
+using OneBadStep = NonFiniteAtStep;
 
 TEST(TrainerSynthetic, NonFiniteStepRollsBackAndTrainingContinues) {
   auto data = MovingBall();
@@ -212,7 +161,7 @@ TEST(TrainerSynthetic, NonFiniteStepRollsBackAndTrainingContinues) {
   bool rolled_back = false;
   for (const std::string& e : trained->events) rolled_back |= e.find("rolled back") != std::string::npos;
   EXPECT_TRUE(rolled_back);
-  EXPECT_EQ(backend.loads_, 2);  // the initial load and the rollback
+  EXPECT_EQ(backend.loads(), 2);  // the initial load and the rollback
   EXPECT_EQ(trained->coarse_steps + trained->fine_steps, 40) << "the phase still runs to its end";
   EXPECT_TRUE(ValidateAsset(trained->asset).ok());
 }
@@ -225,10 +174,7 @@ TEST(TrainerSynthetic, TimeLimitEndsThePhaseAndSkipsTheLaterOnes) {
   options.config.stage1.coarse_iterations = 100000;  // far more than the limit allows
   options.time_limit_seconds = 0.5;
   std::vector<std::string> phases;
-  options.progress = [&](const TrainProgress& p) {
-    if (p.event.empty() && (phases.empty() || phases.back() != p.phase)) phases.push_back(p.phase);
-    return true;
-  };
+  options.progress = RecordPhases(&phases);
   auto backend = MakeCpuBackend();
   auto trained = Train(*data, *backend, options);
   ASSERT_TRUE(trained.ok()) << trained.status().ToString();

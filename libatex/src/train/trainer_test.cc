@@ -11,6 +11,8 @@
 #include "atex/render.h"
 #include "atex/train/checkpoint.h"
 #include "core/test_support.h"
+#include "train/forwarding_backend.h"
+#include "train/trainer_test_util.h"
 
 namespace atex::train {
 namespace {
@@ -294,72 +296,12 @@ TEST(TrainerLego, ResumeFromACheckpointReproducesTheUninterruptedRun) {
   config.stage1.densify.from_step = 5;
   config.stage1.densify.interval = 10;
   config.checkpoint_every = 10;
-  TrainerOptions full;
-  full.config = config;
-  full.stages = kStage1;
-  auto b1 = MakeCpuBackend();
-  auto straight = Train(*data, *b1, full);
-  ASSERT_TRUE(straight.ok()) << straight.status().ToString();
-
-  // Stop after 30 steps (fine step 10) through the progress callback; a checkpoint is written.
-  TrainerOptions part = full;
-  part.checkpoint_dir = (dir / "ckpt").string();
-  part.log_every = 10;
-  part.progress = [](const TrainProgress& p) { return !(p.phase == "fine" && p.step == 10); };
-  auto b2 = MakeCpuBackend();
-  auto stopped = Train(*data, *b2, part);
-  ASSERT_EQ(stopped.status().code(), StatusCode::kCancelled) << stopped.status().ToString();
-  auto checkpoint = ReadCheckpoint(part.checkpoint_dir);
-  ASSERT_TRUE(checkpoint.ok()) << checkpoint.status().ToString();
-  EXPECT_EQ(checkpoint->trainer.value("phase", ""), "fine");
-  EXPECT_EQ(checkpoint->trainer.value("step", -1), 10);
-
-  TrainerOptions resume = full;
-  resume.resume_dir = part.checkpoint_dir;
-  auto b3 = MakeCpuBackend();
-  auto resumed = Train(*data, *b3, resume);
-  ASSERT_TRUE(resumed.ok()) << resumed.status().ToString();
-  EXPECT_EQ(resumed->asset.gaussians.positions, straight->asset.gaussians.positions);
-  EXPECT_EQ(resumed->asset.gaussians.sh, straight->asset.gaussians.sh);
-  EXPECT_EQ(resumed->asset.deformation->trunk[0].weight, straight->asset.deformation->trunk[0].weight);
+  // Stop after 30 steps (fine step 10), then resume.
+  ExpectResumeReproducesTheStraightRun(*data, config, 10, dir.path());
 }
 
 // A backend that reports one non-finite step: the loop must roll back and continue.
-class FlakyBackend final : public Backend {
- public:
-  explicit FlakyBackend(int bad_step) : inner_(MakeCpuBackend()), bad_step_(bad_step) {}
-  std::string name() const override { return "flaky"; }
-  Status Load(const ModelState& s) override {
-    ++loads_;
-    return inner_->Load(s);
-  }
-  Status Save(ModelState* s) override { return inner_->Save(s); }
-  Status ReadGaussians(Gaussians* g) override { return inner_->ReadGaussians(g); }
-  StatusOr<StepResult> Step(const StepRequest& r, std::span<const TrainView> v) override {
-    if (steps_++ == bad_step_) {
-      StepResult bad;
-      bad.loss = std::numeric_limits<double>::quiet_NaN();
-      bad.finite = false;
-      return bad;
-    }
-    last_position_lr_ = r.learning_rates[kGroupPositions];
-    return inner_->Step(r, v);
-  }
-  Status ReadGradients(ModelState* g) override { return inner_->ReadGradients(g); }
-  Status ReadStats(int k, TrainingStats* s) override { return inner_->ReadStats(k, s); }
-  Status ResetStats(int k) override { return inner_->ResetStats(k); }
-  Status ApplyEdit(const GaussianEdit& e) override { return inner_->ApplyEdit(e); }
-  Status AttachTextures(const TexturePool& l) override { return inner_->AttachTextures(l); }
-  Status ResizeTextures(const TextureResize& r) override { return inner_->ResizeTextures(r); }
-  StatusOr<Image> Render(const Camera& c, const RenderRequest& r) override { return inner_->Render(c, r); }
-  int loads_ = 0;
-  double last_position_lr_ = 0;
-
- private:
-  std::unique_ptr<Backend> inner_;
-  int bad_step_;
-  int steps_ = 0;
-};
+using FlakyBackend = NonFiniteAtStep;
 
 TEST(TrainerLego, NonFiniteStepRollsBackAndHalvesTheLearningRate) {
   ATEX_REQUIRE_DATA_FILE(path, "dnerf_lego_tiny/tiny_dnerf_data.npz");
@@ -379,9 +321,9 @@ TEST(TrainerLego, NonFiniteStepRollsBackAndHalvesTheLearningRate) {
   bool logged = false;
   for (const auto& e : trained->events) logged |= e.find("rolled back") != std::string::npos;
   EXPECT_TRUE(logged);
-  EXPECT_EQ(backend.loads_, 2);  // the initial load and the rollback
+  EXPECT_EQ(backend.loads(), 2);  // the initial load and the rollback
   const double expected = config.stage1.lr.position.At(11) * CameraExtent(data->train_views()) * 0.5;
-  EXPECT_NEAR(backend.last_position_lr_, expected, expected * 1e-9);
+  EXPECT_NEAR(backend.last_request().learning_rates[kGroupPositions], expected, expected * 1e-9);
 }
 
 }  // namespace
