@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# Fit speed and quality A/B on one GPU (issue 23): Panoptic basketball uniform and adaptive
+# models fitted to 25 % of the uniform file, with the current tree (into $BUILD) and .oldsrc
+# (into build-old: `git archive COMMIT | tar -x -C .oldsrc`), in one call, one after the other
+# on the same GPU. Each fit is timed (wall seconds of the process) and its output evaluated on
+# the test views; outputs are checked against the budget and with `atex verify`.
+#
+#   bench/device/fit_panoptic.sh OUT_DIR [UNIFORM.atex ADAPTIVE.atex]
+#
+# Without models it trains short ones with the current tree (shortened stage 1 of common.sh,
+# then 1,200 stage-2 steps uniform and adaptive, growth at 120 and 240). Results:
+# OUT_DIR/fit_panoptic.jsonl (one row per fit) and a table on stdout.
+source "$(dirname "$0")/common.sh"
+out=$1
+OLD=build-old
+models=out/fitp
+mkdir -p "$out" "$models"
+jobs=$(nproc)
+build_tree . "$BUILD" "$jobs" atex_cli > out/build_new.log 2>&1 || { tail -5 out/build_new.log; exit 1; }
+build_old "$jobs" > out/build_old.log 2>&1 || { tail -5 out/build_old.log; exit 1; }
+nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | head -1 | tee "$out/gpu.txt"
+
+if [ $# -ge 3 ]; then
+  uniform=$2
+  adaptive=$3
+else
+  train_short_stage1 "$models" 0
+  for textures in uniform adaptive; do
+    [ -f "$models/$textures.atex" ] && continue
+    growth=()
+    [ "$textures" = adaptive ] && growth=(--set 'stage2.growth_steps=[120,240]')
+    "$atex" train --data "$bb" --stage 2 --init "$models/stage1.atex" --textures "$textures" \
+      --set stage2.iterations=1200 "${growth[@]}" --out "$models/$textures.atex" --json \
+      > "$models/$textures.train.json" 2> "$models/$textures.log"
+  done
+  uniform=$models/uniform.atex
+  adaptive=$models/adaptive.atex
+fi
+budget=$(( $(stat -c %s "$uniform") / 4 ))
+rows=$out/fit_panoptic.jsonl
+: > "$rows"
+for model in uniform adaptive; do
+  input=${!model}
+  for bin in "$OLD" "$BUILD"; do
+    name=$out/${model}_$(basename "$bin")
+    start=$(date +%s.%N)
+    "$bin/bin/atex" fit "$input" "$name.atex" --budget "$budget" --data "$bb" --json > "$name.fit.json" 2> "$name.fit.log"
+    end=$(date +%s.%N)
+    "$BUILD/bin/atex" eval "$name.atex" --data "$bb" --json > "$name.eval.json"
+    verified=true
+    "$BUILD/bin/atex" verify "$name.atex" > /dev/null 2>&1 || verified=false
+    python3 - "$name" "$model" "$bin" "$budget" "$start" "$end" "$verified" >> "$rows" <<'PY'
+import json, os, sys
+name, model, binary, budget, start, end, verified = sys.argv[1:]
+fit = json.load(open(name + ".fit.json"))
+ev = json.load(open(name + ".eval.json"))
+size = os.path.getsize(name + ".atex")
+print(json.dumps({"model": model, "build": binary, "budget_bytes": int(budget), "bytes": size,
+                  "within_budget": size <= int(budget), "verify": verified == "true",
+                  "wall_s": round(float(end) - float(start), 2), "fit_s": fit["seconds"].get("fit"),
+                  "measurements": fit.get("plan_timing", [{}])[0].get("measurements"),
+                  "test_psnr": ev["mean"]["psnr"], "gaussians": fit["levers"]["gaussians"]["after"]}))
+PY
+  done
+done
+python3 - "$rows" <<'PY'
+import json, sys
+rows = [json.loads(l) for l in open(sys.argv[1])]
+print("| model | build | wall s | fit s | measurements | bytes | within | verify | test PSNR |")
+print("|---|---|---:|---:|---:|---:|---|---|---:|")
+for r in rows:
+    print(f"| {r['model']} | {r['build']} | {r['wall_s']} | {r['fit_s']:.1f} | {r['measurements']} | {r['bytes']} "
+          f"| {r['within_budget']} | {r['verify']} | {r['test_psnr']:.4f} |")
+PY

@@ -1,0 +1,111 @@
+#!/usr/bin/env python3
+"""Times `atex fit` of two CLI binaries on the same input and budgets, in one run.
+
+Builds nothing: give the two binaries (e.g. the CLI of an earlier commit and of this tree).
+For each binary and budget it runs
+
+    atex fit INPUT OUT --budget B --json [FIT_ARGS]
+
+timing the wall seconds of the process, then checks the output (bytes <= budget,
+`atex verify`), and with --data evaluates the output's test PSNR with `atex eval` (not
+timed). Prints one table and writes the rows as JSON lines (--out).
+
+    python3 bench/fit_speed.py --old /tmp/atex_old --new build/bin/atex \
+        --input samples/lego_adaptive_2MiB.atex --budgets 1MB,1.5MB \
+        --data ../shared/data/dnerf_lego_tiny/tiny_dnerf_data.npz --repeats 1
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+
+def parse_size(text):
+    units = {"": 1, "B": 1, "KB": 1000, "MB": 1000**2, "GB": 1000**3, "KIB": 1024, "MIB": 1024**2,
+             "GIB": 1024**3, "K": 1024, "M": 1024**2, "G": 1024**3}
+    t = text.strip().upper()
+    number = t.rstrip("KMGIB ")
+    unit = t[len(number):].strip()
+    return int(float(number) * units[unit])
+
+
+def run_fit(binary, input_path, output, budget, fit_args):
+    cmd = [binary, "fit", input_path, output, "--budget", budget, "--json"] + fit_args
+    start = time.monotonic()
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    seconds = time.monotonic() - start
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
+    return seconds, json.loads(proc.stdout)
+
+
+def verify(binary, path):
+    return subprocess.run([binary, "verify", path], capture_output=True, text=True).returncode == 0
+
+
+def test_psnr(binary, path, data):
+    proc = subprocess.run([binary, "eval", path, "--data", data, "--json"], capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"atex eval {path} failed:\n{proc.stderr[-2000:]}")
+    report = json.loads(proc.stdout)
+    mean = report.get("mean", report)
+    return mean.get("psnr")
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--old", required=True, help="the baseline atex binary")
+    p.add_argument("--new", required=True, help="the atex binary under test")
+    p.add_argument("--input", default="samples/lego_adaptive_2MiB.atex")
+    p.add_argument("--budgets", default="1MB", help="comma-separated budgets, as atex fit reads them")
+    p.add_argument("--data", default="", help="dataset for the outputs' test PSNR (atex eval), optional")
+    p.add_argument("--repeats", type=int, default=1, help="fits per binary and budget (alternating old/new)")
+    p.add_argument("--fit-args", default="", help="extra arguments for atex fit (one string)")
+    p.add_argument("--out", default="", help="JSON lines of the rows")
+    a = p.parse_args()
+
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for budget in a.budgets.split(","):
+            for r in range(a.repeats):
+                for label, binary in (("old", a.old), ("new", a.new)):
+                    out = os.path.join(tmp, f"{label}_{budget}_{r}.atex")
+                    seconds, report = run_fit(binary, a.input, out, budget, a.fit_args.split())
+                    size = os.path.getsize(out)
+                    timing = report.get("plan_timing", [{}])[0]
+                    row = {"binary": label, "path": binary, "budget": budget, "budget_bytes": parse_size(budget),
+                           "repeat": r, "wall_s": round(seconds, 3), "bytes": size,
+                           "within_budget": size <= parse_size(budget), "verify": verify(a.new, out),
+                           "measurements": timing.get("measurements"),
+                           "plan_s": timing.get("seconds", {}).get("total"),
+                           "render_s": timing.get("seconds", {}).get("render"),
+                           "gaussians": report["levers"]["gaussians"]["after"],
+                           "moves": len(report.get("moves", [])),
+                           "proxy_psnr": report.get("estimated_psnr_vs_input")}
+                    if a.data:
+                        row["test_psnr"] = test_psnr(a.new, out, a.data)
+                    rows.append(row)
+                    print(json.dumps(row), file=sys.stderr)
+    header = ["binary", "budget", "wall_s", "plan_s", "render_s", "measurements", "bytes", "within_budget",
+              "verify", "gaussians", "moves", "proxy_psnr"] + (["test_psnr"] if a.data else [])
+    print("| " + " | ".join(header) + " |")
+    print("|" + "---|" * len(header))
+    for row in rows:
+        cells = []
+        for h in header:
+            v = row.get(h)
+            cells.append(f"{v:.3f}" if isinstance(v, float) else str(v))
+        print("| " + " | ".join(cells) + " |")
+    if a.out:
+        with open(a.out, "w") as f:
+            for row in rows:
+                f.write(json.dumps(row) + "\n")
+    bad = [r for r in rows if not (r["within_budget"] and r["verify"])]
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
