@@ -32,6 +32,15 @@ TEST(Config, UnknownKeysAndBadValuesAreErrors) {
   EXPECT_FALSE(ApplyOverride(config, "no_equals_sign").ok());
 }
 
+TEST(Config, PanopticRigsStartFromStereoWithCameraColours) {
+  EXPECT_EQ(DefaultConfig("panoptic").stage1.init_method, "mvs+hull");
+  EXPECT_TRUE(DefaultConfig("panoptic").camera_colour.enabled);
+  for (const char* kind : {"dnerf", "n3dv", ""}) {
+    EXPECT_EQ(DefaultConfig(kind).stage1.init_method, "auto") << kind;
+    EXPECT_FALSE(DefaultConfig(kind).camera_colour.enabled) << kind;
+  }
+}
+
 TEST(Config, DatasetDefaultsFollowFourDGaussians) {
   EXPECT_EQ(DefaultConfig("dnerf").stage1.deformation.grid.channels, 32);
   EXPECT_EQ(DefaultConfig("dnerf").stage1.deformation.mlp_width, 64);
