@@ -163,6 +163,8 @@ TEST(LegoNpz, SplitsIntrinsicsAndCameras) {
   ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
   const Dataset& d = **dataset;
   EXPECT_EQ(d.kind(), DatasetKind::kDNerfNpz);
+  EXPECT_EQ(d.background(), (std::array<float, 3>{0.0f, 0.0f, 0.0f}));  // its frames are on black
+  EXPECT_FALSE(d.frames_have_alpha());
   EXPECT_EQ(d.train_views().size(), 50u);
   EXPECT_EQ(d.val_views().size(), 11u);
   EXPECT_EQ(d.test_views().size(), 20u);
@@ -265,6 +267,49 @@ TEST(DNerf, BlenderPosesRgbaFramesAndMissingFiles) {
   EXPECT_FLOAT_EQ((*mask)->at(6, 1, 0), 0.0f);
   options.test_cameras = {0};
   EXPECT_EQ(OpenDataset(dir.path().string(), options).status().code(), StatusCode::kInvalidArgument);
+}
+
+// A D-NeRF folder of one train and one test RGBA frame (left half opaque red, right half transparent).
+void WriteRgbaDNerfFolder(const fs::path& dir) {
+  nlohmann::json meta = nlohmann::json::parse(R"({"camera_angle_x": 0.69, "frames": [{"file_path": "./r_000",
+      "time": 0.0, "transform_matrix": [[1,0,0,0],[0,0,-1,-4],[0,1,0,0],[0,0,0,1]]}]})");
+  WriteText(dir / "transforms_train.json", meta.dump());
+  WriteText(dir / "transforms_test.json", meta.dump());
+  Image rgba(8, 6, 4);
+  for (int y = 0; y < 6; ++y) {
+    for (int x = 0; x < 8; ++x) {
+      rgba.at(x, y, 0) = 1.0f;
+      rgba.at(x, y, 3) = x < 4 ? 1.0f : 0.0f;
+    }
+  }
+  ASSERT_TRUE(WriteImage((dir / "r_000.png").string(), rgba).ok());
+}
+
+// Issue 24: D-NeRF's published convention composites its RGBA frames on white; a dataset
+// opened without a background follows it, and says so. The tiny lego .npz (alpha dropped on
+// black when it was packed) keeps black.
+TEST(DNerf, DefaultBackgroundIsTheDatasetsConvention) {
+  testing::TempDir dir;
+  WriteRgbaDNerfFolder(dir.path());
+  auto dataset = OpenDataset(dir.path().string());
+  ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
+  const Dataset& d = **dataset;
+  EXPECT_TRUE(d.background_is_default());
+  EXPECT_EQ(d.background(), (std::array<float, 3>{1.0f, 1.0f, 1.0f}));
+  EXPECT_TRUE(d.frames_have_alpha());
+  auto image = d.LoadImage(d.train_views()[0]);
+  ASSERT_TRUE(image.ok()) << image.status().ToString();
+  EXPECT_FLOAT_EQ((*image)->at(6, 1, 1), 1.0f);  // transparent: white
+  EXPECT_FLOAT_EQ((*image)->at(1, 1, 1), 0.0f);  // opaque red
+  EXPECT_NE(DefaultBackgroundReason(DatasetKind::kDNerf).find("white"), std::string::npos);
+  DatasetOptions black;
+  black.background = std::array<float, 3>{0.0f, 0.0f, 0.0f};
+  auto explicit_black = OpenDataset(dir.path().string(), black);
+  ASSERT_TRUE(explicit_black.ok());
+  EXPECT_FALSE((*explicit_black)->background_is_default());
+  EXPECT_FLOAT_EQ((*(*explicit_black)->LoadImage((*explicit_black)->train_views()[0]))->at(6, 1, 1), 0.0f);
+  EXPECT_EQ(DefaultBackground(DatasetKind::kDNerfNpz), (std::array<float, 3>{0.0f, 0.0f, 0.0f}));
+  EXPECT_EQ(DefaultBackground(DatasetKind::kPanoptic), (std::array<float, 3>{0.0f, 0.0f, 0.0f}));
 }
 
 TEST(DNerf, NonRigidPoseIsRefused) {
