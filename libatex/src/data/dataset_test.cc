@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "atex/dataset.h"
+#include "atex/file_io.h"
 #include "atex/npy.h"
 #include "core/test_support.h"
 
@@ -600,6 +601,60 @@ TEST(Panoptic, TimestepStrideAndSparseTrainCameras) {
   EXPECT_EQ(cams, (std::set<int>{1, 5, 11, 16, 21, 25}));
   EXPECT_DOUBLE_EQ(d.test_views().back().camera.time, 1.0);  // t = 8 of 0..8
   EXPECT_EQ(d.test_views().back().timestep, 2);
+}
+
+// Issue 24: the packed lego layout with the wrong dtype, values outside [0, 1], or images
+// larger than the image cache is refused when opened, naming the problem.
+TEST(LegoNpz, ImagesAreFloatInRangeAndFitTheCache) {
+  testing::TempDir dir;
+  const int64_t n = 81, side = 4;
+  std::vector<float> pixels(n * side * side * 3, 0.5f);
+  std::vector<double> poses;
+  for (int64_t i = 0; i < n; ++i) {
+    for (double v : {1, 0, 0, 0, 0, 0, -1, -4, 0, 1, 0, 0, 0, 0, 0, 1}) poses.push_back(v);
+  }
+  std::vector<double> times(n);
+  for (int64_t i = 0; i < n; ++i) times[i] = double(i % 10) / 9.0;
+  const auto write = [&](const NpyArray& images, const std::string& name) {
+    std::map<std::string, NpyArray> arrays = {{"images", images},
+                                              {"poses", NpyArray::FromDoubles({n, 4, 4}, poses)},
+                                              {"times", NpyArray::FromDoubles({n}, times)},
+                                              {"focal", NpyArray::FromDoubles({}, {5.0})}};
+    const std::string path = (dir / name).string();
+    EXPECT_TRUE(WriteNpzFile(path, arrays, true).ok());
+    return path;
+  };
+  const std::string good = write(NpyArray::FromFloats({n, side, side, 3}, pixels), "good.npz");
+  ASSERT_TRUE(OpenDataset(good).ok()) << OpenDataset(good).status().ToString();
+  NpyArray bytes;
+  bytes.dtype = NpyDtype::kUint8;
+  bytes.shape = {n, side, side, 3};
+  bytes.data.assign(pixels.size(), 128);
+  auto u8 = OpenDataset(write(bytes, "u8.npz"));
+  EXPECT_EQ(u8.status().code(), StatusCode::kCorrupt);
+  EXPECT_NE(u8.status().message().find("|u1"), std::string::npos) << u8.status().ToString();
+  pixels[3 * side * side * 3 + 7] = 1.5f;
+  auto bright = OpenDataset(write(NpyArray::FromFloats({n, side, side, 3}, pixels), "bright.npz"));
+  EXPECT_EQ(bright.status().code(), StatusCode::kCorrupt);
+  EXPECT_NE(bright.status().message().find("frame 3"), std::string::npos) << bright.status().ToString();
+  DatasetOptions small;
+  small.image_cache_bytes = 1000;  // the 81 frames need 15,552 bytes
+  auto big = OpenDataset(good, small);
+  EXPECT_EQ(big.status().code(), StatusCode::kLimitExceeded);
+  EXPECT_NE(big.status().message().find("image cache"), std::string::npos) << big.status().ToString();
+}
+
+// A cache larger than the machine degrades to half its RAM, with a warning.
+TEST(ImageCache, LargerThanRamDegradesWithAWarning) {
+  ATEX_REQUIRE_DATA_FILE(npz, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  DatasetOptions options;
+  options.image_cache_bytes = uint64_t{1} << 62;
+  auto d = OpenDataset(npz.string(), options);
+  ASSERT_TRUE(d.ok()) << d.status().ToString();
+  if (PhysicalMemoryBytes() == 0) GTEST_SKIP() << "physical memory unknown";
+  EXPECT_LE((*d)->cache_limit(), PhysicalMemoryBytes() / 2);
+  ASSERT_FALSE((*d)->warnings().empty());
+  EXPECT_NE((*d)->warnings().back().find("half the machine's RAM"), std::string::npos);
 }
 
 TEST(LegoNpz, TimestepStrideIsRefusedTrainCamerasSelectFrames) {
