@@ -505,7 +505,8 @@ class Matrix:
         if not self.args.dry_run and os.path.exists(model) and read_json(report) is not None:
             return model, read_json(report), attempts
         ckpt = base + ".ckpt"
-        argv = argv + ["--out", model, "--json", "--seed", str(cell["seed"]), "--backend", self.cfg["backend"],
+        # --force: the harness owns its outputs (a model without its report is retrained in place).
+        argv = argv + ["--out", model, "--force", "--json", "--seed", str(cell["seed"]), "--backend", self.cfg["backend"],
                        "--checkpoint-dir", ckpt, "--checkpoint-every", str(stage_cfg["checkpoint_every"])]
         per_stage = self.args.stage1_time_limit if stage_name == "stage1" else self.args.stage2_time_limit
         time_limit = per_stage or self.args.time_limit or stage_cfg.get("time_limit") or 0
@@ -563,7 +564,7 @@ class Matrix:
         fit = self.cfg["fit"]
         cell_dir = self.cell_dir(cell)
         out = os.path.join(cell_dir, "fit.atex")
-        argv = ["fit", model, out]
+        argv = ["fit", model, out, "--force"]  # a cell re-run replaces its own fit
         if b["kind"] == "keep_count":
             argv += ["--keep-count", str(b["keep_count"])]
             if b.get("order_from") == "stage1":

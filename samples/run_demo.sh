@@ -23,7 +23,7 @@ step() { echo; echo "== $*"; }
 
 if [ "${ATEX_DEMO_TRAIN:-0}" = 1 ] && [ -f "$LEGO_DATA" ]; then
   step "atex train: both stages on the tiny lego (GPU when present; see samples/README.md)"
-  "$ATEX" train --data "$LEGO_DATA" --out "$OUT/lego_trained.atex" --time-limit 600 \
+  "$ATEX" train --data "$LEGO_DATA" --out "$OUT/lego_trained.atex" --force --time-limit 600 \
     --set stage1.init_points=20000 --set stage1.fine_iterations=8000 \
     --set stage1.deformation.grid.channels=16 --set 'stage1.deformation.grid.base_resolution=[32,32,32,13]' \
     --set stage2.iterations=2000
@@ -39,26 +39,26 @@ step "atex verify: structure, every checksum and every value"
 if [ -f "$LEGO_DATA" ]; then
   step "atex render + eval against the real lego test images (CPU reference renderer without a GPU)"
   "$ATEX" render "$SAMPLE" --data "$LEGO_DATA" --view test:0 --out "$OUT/lego_test0.png" \
-    --ground-truth "$OUT/lego_test0_truth.png"
+    --ground-truth "$OUT/lego_test0_truth.png" --force
   "$ATEX" eval "$SAMPLE" --data "$LEGO_DATA"
 else
   step "skipping render/eval: $LEGO_DATA not found (set ATEX_DATA_DIR)"
 fi
 
 step "atex export: glTF 2.0 with KHR_gaussian_splatting + ATEX extensions, and splaTV"
-"$ATEX" export "$SAMPLE" "$OUT/lego.glb"
-"$ATEX" export "$SAMPLE" "$OUT/lego.splatv"
+"$ATEX" export "$SAMPLE" "$OUT/lego.glb" --force
+"$ATEX" export "$SAMPLE" "$OUT/lego.splatv" --force
 echo "open them in a browser: tests/web/install.sh; node tests/web/serve.mjs --data $OUT; then"
 echo "  http://127.0.0.1:8080/?src=/data/lego.glb (Babylon.js) and http://127.0.0.1:8080/splatv.html?src=/data/lego.splatv"
 step "atex convert: 3DGS PLY at t=0.5, per-frame SPZ, and the OpenEXR texel atlas"
-"$ATEX" convert "$SAMPLE" "$OUT/lego_t0.5.ply" --time 0.5
-"$ATEX" convert "$SAMPLE" "$OUT/frames" --frames 0:1:0.25 --to spz
-"$ATEX" convert "$SAMPLE" "$OUT/lego_texels.exr" || echo "(no OpenEXR in this build)"
+"$ATEX" convert "$SAMPLE" "$OUT/lego_t0.5.ply" --time 0.5 --force
+"$ATEX" convert "$SAMPLE" "$OUT/frames" --frames 0:1:0.25 --to spz --force
+"$ATEX" convert "$SAMPLE" "$OUT/lego_texels.exr" --force || echo "(no OpenEXR in this build)"
 
 step "atex fit: the sample to a 1 MiB budget (never over); the report says what each lever removed"
 FIT_DATA=()
 [ -f "$LEGO_DATA" ] && FIT_DATA=(--data "$LEGO_DATA")
-"$ATEX" fit "$SAMPLE" "$OUT/lego_1MiB.atex" --budget 1MiB "${FIT_DATA[@]}"
+"$ATEX" fit "$SAMPLE" "$OUT/lego_1MiB.atex" --force --budget 1MiB "${FIT_DATA[@]}"
 "$ATEX" verify "$OUT/lego_1MiB.atex"
 ls -l "$OUT/lego_1MiB.atex"
 
@@ -72,7 +72,7 @@ for pack in "${PACKS[@]}"; do
   label=${pack%%|*}
   read -r -a options <<<"${pack#*|}"
   step "atex pack sample -> $label (${options[*]})"
-  "$ATEX" pack "$HERE/sample.atex" "$OUT/sample.$label.atex" "${options[@]}"
+  "$ATEX" pack "$HERE/sample.atex" "$OUT/sample.$label.atex" --force "${options[@]}"
   "$ATEX" verify "$OUT/sample.$label.atex"
 done
 

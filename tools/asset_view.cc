@@ -5,6 +5,7 @@
 
 #include "atex/container.h"
 #include "atex/train/trainer.h"
+#include "cli_parse.h"
 
 namespace atex::cli {
 
@@ -16,8 +17,10 @@ Status LoadAssetIntoBackend(const std::string& path, train::Backend* backend, As
   return Status::Ok();
 }
 
-StatusOr<std::unique_ptr<Dataset>> OpenDatasetArgs(const std::string& path, const DatasetArgs& args) {
+StatusOr<std::unique_ptr<Dataset>> OpenDatasetArgs(const std::string& path, const DatasetArgs& args,
+                                                   const std::array<float, 3>* background) {
   DatasetOptions options;
+  if (background != nullptr) options.background = *background;
   ATEX_ASSIGN_OR_RETURN(options.kind, ParseDatasetKind(args.kind));
   options.max_timesteps = args.timesteps;
   options.downscale = args.downscale;
@@ -28,22 +31,13 @@ StatusOr<std::unique_ptr<Dataset>> OpenDatasetArgs(const std::string& path, cons
 }
 
 StatusOr<View> PickView(const Dataset& data, const std::string& spec) {
-  const size_t colon = spec.find(':');
-  const std::string split = spec.substr(0, colon);
-  const std::vector<View>* views = split == "test" ? &data.test_views() : split == "train" ? &data.train_views() : nullptr;
-  if (views == nullptr || colon == std::string::npos) {
-    return MakeError(StatusCode::kInvalidArgument, "--view '", spec, "' is not test:N or train:N");
+  ATEX_ASSIGN_OR_RETURN(const ViewSpec parsed, ParseViewSpec(spec, "--view"));
+  const std::vector<View>& views = parsed.split == "test" ? data.test_views() : data.train_views();
+  if (parsed.index >= views.size()) {
+    return MakeError(StatusCode::kNotFound, "--view ", spec, ": the ", parsed.split, " split has ", views.size(),
+                     " views");
   }
-  size_t index = 0;
-  try {
-    index = std::stoul(spec.substr(colon + 1));
-  } catch (...) {
-    return MakeError(StatusCode::kInvalidArgument, "--view '", spec, "': bad index");
-  }
-  if (index >= views->size()) {
-    return MakeError(StatusCode::kNotFound, "--view ", spec, ": the ", split, " split has ", views->size(), " views");
-  }
-  return (*views)[index];
+  return views[parsed.index];
 }
 
 }  // namespace atex::cli

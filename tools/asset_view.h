@@ -26,8 +26,11 @@ struct DatasetArgs {
 Status LoadAssetIntoBackend(const std::string& path, train::Backend* backend, Asset* asset,
                             train::RenderRequest* request);
 
-// Opens --data with the dataset options of the commands (cli::AddDatasetOptions).
-StatusOr<std::unique_ptr<Dataset>> OpenDatasetArgs(const std::string& path, const DatasetArgs& args);
+// Opens --data with the dataset options of the commands (cli::AddDatasetOptions). RGBA
+// frames are composited on `background` when given (an asset's, so that ground truth
+// matches its renders), else on the dataset kind's default (DefaultBackground).
+StatusOr<std::unique_ptr<Dataset>> OpenDatasetArgs(const std::string& path, const DatasetArgs& args,
+                                                   const std::array<float, 3>* background = nullptr);
 
 // "test:3" / "train:12": the index-th view of that split (errors name the spec).
 StatusOr<View> PickView(const Dataset& data, const std::string& spec);

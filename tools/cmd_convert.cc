@@ -7,6 +7,7 @@
 
 #include "atex/converters/convert.h"
 #include "cli.h"
+#include "cli_parse.h"
 
 namespace {
 
@@ -26,8 +27,20 @@ struct ConvertArgs {
   int zstd_level = 3;
   std::string frames;  // START:END:STEP; empty: one output file
   int iteration = -1;  // 4dgs input: -1 = the highest
-  bool json = false;
+  bool json = false, force = false;
 };
+
+// The output's extension names the format written (--to, when given, must agree with it).
+atex::Status CheckConvertOutput(const ConvertArgs& a) {
+  if (!a.frames.empty()) return atex::cli::CheckOutput(a.output, a.force, {{a.input}, {}, "output folder", true, true});
+  std::vector<std::string> extensions = {".ply", ".spz", ".atex", ".exr", ".drc"};
+  if (!a.to.empty()) {
+    std::string to = a.to;
+    for (char& c : to) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    extensions = {"." + to};
+  }
+  return atex::cli::CheckOutput(a.output, a.force, {{a.input, a.base}, extensions});
+}
 
 atex::StatusOr<atex::Codec> ParseCodec(const std::string& name) {
   if (name == "raw") return atex::Codec::kRaw;
@@ -88,6 +101,7 @@ int RunConvert(const ConvertArgs& a) {
   w.positions = w.rotations = w.log_scales = w.opacities = w.sh_dc = w.sh_rest = w.texels = w.deformation_grids =
       *encoding;
 
+  if (atex::Status s = CheckConvertOutput(a); !s.ok()) return atex::cli::Fail("convert", s, a.output);
   auto report = atex::ConvertFile(a.input, a.output, options);
   if (!report.ok()) {
     if (bar && bar->tty()) std::fputc('\n', stderr);  // end the progress line before the message
@@ -142,8 +156,7 @@ atex::cli::Runner SetupConvert(CLI::App& app) {
       ->check(CLI::IsMember({"opencv", "stored"}));
   app.add_option("--draco-bits", a->draco_bits, "Draco position quantisation bits")->check(CLI::Range(1, 30));
   app.add_flag("--draco-attributes", a->draco_attributes, "Also store colour, opacity, log-scale and rotation");
-  app.add_option("--time", a->time,
-                 "Deform to this scene time for .ply/.spz/.drc output (whole field: every enabled head)")
+  atex::cli::AddReal(app, "--time", &a->time, -1e9, 1e9, "Deform to this scene time for .ply/.spz/.drc output (whole field: every enabled head)")
       ->each([a](const std::string&) { a->has_time = true; });
   app.add_option("--base", a->base, ".exr input: the asset (.atex/.ply/.spz) whose textures the atlas replaces");
   app.add_option("--atlas-width", a->atlas_width, ".exr output: atlas width in texels (0: square-ish)")
@@ -160,6 +173,7 @@ atex::cli::Runner SetupConvert(CLI::App& app) {
   app.add_option("--iteration", a->iteration,
                  "4DGaussians input: import point_cloud/iteration_N (default: the highest)")
       ->check(CLI::Range(0, 1 << 30));
+  atex::cli::AddForceFlag(app, &a->force);
   app.add_flag("--json", a->json, "Print a machine-readable summary");
   return [a]() { return RunConvert(*a); };
 }

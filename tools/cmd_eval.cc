@@ -7,13 +7,14 @@
 #include "atex/train/trainer.h"
 #include "backend_select.h"
 #include "cli.h"
+#include "cli_parse.h"
 
 namespace {
 
 struct EvalArgs {
   std::string asset, data, backend = "auto", split = "test";
   atex::cli::DatasetArgs dataset;
-  float near_plane = atex::kDefaultNearPlane;
+  double near_plane = atex::kDefaultNearPlane;
   double dynamic_threshold = atex::kDefaultDynamicThreshold;
   bool json = false;
 };
@@ -21,21 +22,19 @@ struct EvalArgs {
 int RunEval(const EvalArgs& a) {
   using namespace atex;
   const char* cmd = "eval";
-  auto dataset = cli::OpenDatasetArgs(a.data, a.dataset);
-  if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
+  if (a.split != "test" && a.split != "train") return cli::Usage(cmd, "--split must be test or train");
   auto backend = cli::SelectBackend(a.backend);
   if (!backend.ok()) return cli::Fail(cmd, backend.status());
   if (!backend->note.empty()) std::cerr << "atex eval: " << backend->note << "\n";
   Asset asset;
   train::RenderRequest request;
   if (Status s = cli::LoadAssetIntoBackend(a.asset, backend->backend.get(), &asset, &request); !s.ok()) {
-    return cli::Fail(cmd, s);
+    return cli::Fail(cmd, s, a.asset);
   }
-  if (a.split != "test" && a.split != "train") {
-    std::cerr << "atex eval: --split must be test or train\n";
-    return cli::kExitUsage;
-  }
-  request.near_plane = a.near_plane;
+  // Ground truth composited on the asset's background, the one its renders have.
+  auto dataset = cli::OpenDatasetArgs(a.data, a.dataset, &asset.metadata.background);
+  if (!dataset.ok()) return cli::Fail(cmd, dataset.status(), a.data);
+  request.near_plane = static_cast<float>(a.near_plane);
   const auto& views = a.split == "test" ? (*dataset)->test_views() : (*dataset)->train_views();
   auto eval = train::Evaluate(**dataset, *backend->backend, views, request,
                               {.dynamic_region = true, .dynamic_threshold = a.dynamic_threshold});
@@ -45,6 +44,7 @@ int RunEval(const EvalArgs& a) {
     j["asset"] = a.asset;
     j["split"] = a.split;
     j["backend"] = backend->description;
+    j["background"] = asset.metadata.background;
     cli::PrintJson(j);
   } else {
     for (const auto& c : train::EvalToJson(*eval)["cameras"]) {
@@ -73,14 +73,11 @@ atex::cli::Runner SetupEval(CLI::App& app) {
   app.add_option("--split", a->split, "test or train")->capture_default_str();
   app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
   atex::cli::AddDatasetOptions(app, &a->dataset);
-  app.add_option("--near-plane", a->near_plane, "Cull Gaussians at camera z <= this (scene units; training's default)")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
-  app.add_option("--dynamic-threshold", a->dynamic_threshold,
-                 "Dynamic region: pixels whose ground truth's temporal std (RMS over RGB, values in [0, 1]) over the "
-                 "camera's frames exceeds this (atex/dynamic_region.h)")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+  atex::cli::AddReal(app, "--near-plane", &a->near_plane, 1e-9, 1e9,
+                     "Cull Gaussians at camera z <= this (scene units; training's default)");
+  atex::cli::AddReal(app, "--dynamic-threshold", &a->dynamic_threshold, 0.0, 1.0,
+                     "Dynamic region: pixels whose ground truth's temporal std (RMS over RGB, values in [0, 1]) over "
+                     "the camera's frames exceeds this (atex/dynamic_region.h)");
   app.add_flag("--json", a->json, "Machine-readable output");
   return [a]() { return RunEval(*a); };
 }

@@ -15,6 +15,7 @@
 #include "atex/converters/splatv.h"
 #include "atex/file_io.h"
 #include "cli.h"
+#include "cli_parse.h"
 
 namespace {
 
@@ -30,7 +31,7 @@ struct ExportArgs {
   std::string up;
   int samples = 32;
   int psnr_times = 0;
-  bool json = false;
+  bool json = false, force = false;
 };
 
 std::string Lower(std::string s) {
@@ -42,10 +43,24 @@ double Seconds(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// Every file the export writes: the output, a .gltf's .bin beside it; a --frames folder.
+atex::Status CheckExportOutputs(const ExportArgs& a) {
+  using atex::cli::CheckOutput;
+  if (!a.frames.empty()) return CheckOutput(a.output, a.force, {{a.input}, {}, "output folder", true, true});
+  ATEX_RETURN_IF_ERROR(CheckOutput(a.output, a.force, {{a.input}, {".glb", ".gltf", ".splatv"}}));
+  const std::filesystem::path out(a.output);
+  if (Lower(out.extension().string()) == ".gltf") {
+    const std::string bin = (out.parent_path() / (out.stem().string() + ".bin")).string();
+    ATEX_RETURN_IF_ERROR(CheckOutput(bin, a.force, {{a.input}, {}, "the .gltf's buffer", false}));
+  }
+  return atex::Status::Ok();
+}
+
 int RunExport(const ExportArgs& a) {
   const auto start = std::chrono::steady_clock::now();
+  if (atex::Status s = CheckExportOutputs(a); !s.ok()) return atex::cli::Fail("export", s, a.output);
   auto asset = atex::ReadAssetFile(a.input);
-  if (!asset.ok()) return atex::cli::Fail("export", asset.status());
+  if (!asset.ok()) return atex::cli::Fail("export", asset.status(), a.input);
   const double read_seconds = Seconds(start);
 
   atex::GltfExportOptions gltf;
@@ -163,7 +178,7 @@ atex::cli::Runner SetupExport(CLI::App& app) {
   auto a = std::make_shared<ExportArgs>();
   app.add_option("input", a->input, "Asset (.atex)")->required();
   app.add_option("output", a->output, "Output: .glb, .gltf (+ .bin), .splatv, or a folder with --frames")->required();
-  app.add_option("--time", a->time, "glTF: bake the deformation at this scene time")
+  atex::cli::AddReal(app, "--time", &a->time, -1e9, 1e9, "glTF: bake the deformation at this scene time")
       ->each([a](const std::string&) { a->has_time = true; });
   app.add_option("--frames", a->frames, "Write one baked .glb per time start:end:step into the output folder");
   app.add_flag("--meshopt", a->meshopt, "glTF: EXT_meshopt_compression (int16 rotations; floats exact unless --meshopt-bits)");
@@ -179,6 +194,7 @@ atex::cli::Runner SetupExport(CLI::App& app) {
   app.add_option("--samples", a->samples, "splatv: deformation samples for the motion fit")->check(CLI::Range(4, 100000));
   app.add_option("--psnr", a->psnr_times, "splatv: render this many times with libatex and report the PSNR of the bake")
       ->check(CLI::Range(0, 1000));
+  atex::cli::AddForceFlag(app, &a->force);
   app.add_flag("--json", a->json, "Print a machine-readable summary");
   return [a]() { return RunExport(*a); };
 }

@@ -17,6 +17,7 @@
 #include "asset_view.h"
 #include "backend_select.h"
 #include "cli.h"
+#include "cli_parse.h"
 
 namespace {
 
@@ -34,7 +35,7 @@ struct FitArgs {
   bool keep_stats = false;
   uint64_t seed = 6666;
   std::string levers = "default";
-  bool json = false;
+  bool json = false, force = false;
 };
 
 using namespace atex;
@@ -94,36 +95,37 @@ int RunFit(const FitArgs& a) {
   const char* cmd = "fit";
   const int modes = (!a.budget.empty()) + (a.quality > 0);
   if (modes > 1) {
-    std::cerr << "atex fit: --budget and --quality are alternatives\n";
-    return cli::kExitUsage;
+    return atex::cli::Usage("fit", "--budget and --quality are alternatives");
   }
   if (modes == 0 && a.keep_count <= 0) {
-    std::cerr << "atex fit: give --budget SIZE, --keep-count FRACTION or --quality PSNR (see --help)\n";
-    return cli::kExitUsage;
+    return atex::cli::Usage("fit", "give --budget SIZE, --keep-count FRACTION or --quality PSNR (see --help)");
   }
   if ((a.quality > 0 || a.finetune > 0) && a.data.empty()) {
-    std::cerr << "atex fit: --quality and --finetune need --data\n";
-    return cli::kExitUsage;
+    return atex::cli::Usage("fit", "--quality and --finetune need --data");
   }
   // One budget, or several separated by commas sharing one plan (OUTPUT then names each
   // file with "{}", replaced by the budget as written).
   std::vector<uint64_t> budgets;
   std::vector<std::string> budget_texts;
-  for (size_t start = 0; !a.budget.empty() && start <= a.budget.size();) {
-    const size_t comma = std::min(a.budget.find(',', start), a.budget.size());
-    budget_texts.push_back(a.budget.substr(start, comma - start));
-    auto parsed = fit::ParseByteSize(budget_texts.back());
-    if (!parsed.ok()) return cli::Fail(cmd, parsed.status());
-    budgets.push_back(*parsed);
-    start = comma + 1;
+  if (!a.budget.empty()) {
+    auto parsed = cli::ParseByteSizeList(a.budget, "--budget", &budget_texts);
+    if (!parsed.ok()) return cli::Usage(cmd, parsed.status().message());
+    budgets = std::move(*parsed);
   }
   if (budgets.size() > 1 && a.output.find("{}") == std::string::npos) {
-    std::cerr << "atex fit: several budgets need an OUTPUT with {} (e.g. out_{}.atex)\n";
-    return cli::kExitUsage;
+    return atex::cli::Usage("fit", "several budgets need an OUTPUT with {} (e.g. out_{}.atex)");
   }
   if (budgets.size() > 1 && a.finetune > 0) {
-    std::cerr << "atex fit: --finetune takes one budget\n";
-    return cli::kExitUsage;
+    return atex::cli::Usage("fit", "--finetune takes one budget");
+  }
+  for (size_t k = 0; k < std::max<size_t>(1, budgets.size()); ++k) {
+    std::string path = a.output;
+    if (const size_t brace = path.find("{}"); brace != std::string::npos) {
+      path.replace(brace, 2, budget_texts.empty() ? "fit" : budget_texts[k]);
+    }
+    if (Status s = cli::CheckOutput(path, a.force, {{a.input, a.order_from}, {".atex"}}); !s.ok()) {
+      return cli::Fail(cmd, s, path);
+    }
   }
   auto levers = fit::ParseLevers(a.levers);
   if (!levers.ok()) return cli::Fail(cmd, levers.status().WithContext("--levers"));
@@ -164,7 +166,7 @@ int RunFit(const FitArgs& a) {
   if (!backend->note.empty()) std::cerr << "atex fit: " << backend->note << "\n";
   std::unique_ptr<Dataset> dataset;
   if (!a.data.empty()) {
-    auto opened = cli::OpenDatasetArgs(a.data, a.dataset);
+    auto opened = cli::OpenDatasetArgs(a.data, a.dataset, &input.metadata.background);  // probes match renders
     if (!opened.ok()) return cli::Fail(cmd, opened.status());
     dataset = std::move(*opened);
   }
@@ -182,20 +184,23 @@ atex::cli::Runner SetupFit(CLI::App& app) {
   app.add_option("--budget", a->budget,
                  "Largest output file size: bytes or 80MiB, 80MB, 1.5GiB ...; several, comma-separated, share "
                  "one plan (OUTPUT then contains {}, replaced by each budget)");
-  app.add_option("--keep-count", a->keep_count,
-                 "Keep this fraction of the Gaussians, most important first (fixed-count protocol)");
+  cli::AddReal(app, "--keep-count", &a->keep_count, 1e-9, 1.0,
+               "Keep this fraction (0, 1] of the Gaussians, most important first (fixed-count protocol)");
   app.add_option("--order-from", a->order_from,
                  "Take the importance order from this asset (same Gaussians, e.g. the shared stage-1 model)");
-  app.add_option("--quality", a->quality, "Smallest asset whose test PSNR stays at or above this (needs --data)");
+  cli::AddReal(app, "--quality", &a->quality, 1e-9, 200,
+               "Smallest asset whose test PSNR stays at or above this (needs --data)");
   app.add_option("--data", a->data, "Dataset: distortion from its training views, PSNR on its test views");
   atex::cli::AddDatasetOptions(app, &a->dataset);
-  app.add_option("--probes", a->probes, "Views the distortion is measured from")->capture_default_str();
-  app.add_option("--probe-size", a->probe_size, "Longer side of the probe renders in pixels")->capture_default_str();
-  app.add_option("--eval-views", a->eval_views, "Test views for PSNR (evenly spaced; 0 = all)")->capture_default_str();
-  app.add_option("--finetune", a->finetune, "Retrain the trimmed model this many steps, then fit again (needs --data)");
+  cli::AddInt(app, "--probes", &a->probes, 1, 100000, "Views the distortion is measured from");
+  cli::AddInt(app, "--probe-size", &a->probe_size, 8, 16384, "Longer side of the probe renders in pixels");
+  cli::AddInt(app, "--eval-views", &a->eval_views, 0, 1 << 24, "Test views for PSNR (evenly spaced; 0 = all)");
+  cli::AddInt(app, "--finetune", &a->finetune, 0, 100000000,
+              "Retrain the trimmed model this many steps, then fit again (needs --data)");
   app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
   app.add_flag("--keep-stats", a->keep_stats, "Keep the per-Gaussian statistics (GSTA) for later fits");
-  app.add_option("--seed", a->seed, "Breaks importance ties")->capture_default_str();
+  cli::AddUint64(app, "--seed", &a->seed, "Breaks importance ties");
+  cli::AddForceFlag(app, &a->force);
   app.add_option("--levers", a->levers,
                  "Levers the fit may use, comma-separated: prune, textures, sh, encoding, grid, all-textures; "
                  "default = the first five. 'prune' alone, or 'prune,all-textures', is the paper's fixed-memory "

@@ -10,6 +10,7 @@
 #include "atex/dataset.h"
 #include "backend_select.h"
 #include "cli.h"
+#include "cli_parse.h"
 #ifdef ATEX_HAVE_CUDA
 #include "atex/cuda/cuda_backend.h"
 #endif
@@ -40,18 +41,15 @@ int RunFps(const FpsArgs& a) {
   using namespace atex;
   const char* cmd = "fps";
   auto dataset = cli::OpenDatasetArgs(a.data, a.dataset);
-  if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
+  if (!dataset.ok()) return cli::Fail(cmd, dataset.status(), a.data);
   // A malformed --view is an error with the spec, never an exception.
   auto view = cli::PickView(**dataset, a.view);
   if (!view.ok()) return cli::Fail(cmd, view.status());
   Camera camera = view->camera;
   if (!a.size.empty()) {
-    int w = 0, h = 0;
-    if (std::sscanf(a.size.c_str(), "%dx%d", &w, &h) != 2 || w <= 0 || h <= 0) {
-      std::cerr << "atex fps: --size must be WxH\n";
-      return cli::kExitUsage;
-    }
-    camera = Reframe(camera, w, h);
+    auto size = cli::ParseImageSize(a.size, "--size");
+    if (!size.ok()) return cli::Usage(cmd, size.status().message());
+    camera = Reframe(camera, size->width, size->height);
   }
   auto backend = cli::SelectBackend(a.backend);
   if (!backend.ok()) return cli::Fail(cmd, backend.status());
@@ -101,7 +99,7 @@ atex::cli::Runner SetupFps(CLI::App& app) {
   app.add_option("--data", a->data, "Dataset whose camera to use")->required();
   app.add_option("--view", a->view, "test:N or train:N")->capture_default_str();
   app.add_option("--size", a->size, "Re-frame the camera to WxH (e.g. 1352x1014)");
-  app.add_option("--repeats", a->repeats, "Timed renders")->capture_default_str();
+  atex::cli::AddInt(app, "--repeats", &a->repeats, 1, 1000000, "Timed renders (at least 1)");
   app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
   atex::cli::AddDatasetOptions(app, &a->dataset);
   app.add_flag("--json", a->json, "Machine-readable output");

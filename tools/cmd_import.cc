@@ -14,15 +14,20 @@ namespace {
 
 struct ImportArgs {
   std::string input, output;
-  bool json = false;
+  bool json = false, force = false;
 };
 
 int RunImport(const ImportArgs& a) {
   const auto start = std::chrono::steady_clock::now();
+  // A .gltf reads its buffers from files beside it: no output may be the input or one of them
+  // (the .atex extension keeps an output off a .bin buffer).
+  if (atex::Status s = atex::cli::CheckOutput(a.output, a.force, {{a.input}, {".atex"}, "output", false}); !s.ok()) {
+    return atex::cli::Fail("import", s, a.output);
+  }
   auto asset = atex::ReadGltfFile(a.input);
-  if (!asset.ok()) return atex::cli::Fail("import", asset.status());
+  if (!asset.ok()) return atex::cli::Fail("import", asset.status(), a.input);
   atex::Status s = atex::WriteAssetFile(a.output, *asset);
-  if (!s.ok()) return atex::cli::Fail("import", s);
+  if (!s.ok()) return atex::cli::Fail("import", s, a.output);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   nlohmann::json summary = {{"input", a.input},
                             {"output", a.output},
@@ -47,6 +52,7 @@ atex::cli::Runner SetupImport(CLI::App& app) {
   auto a = std::make_shared<ImportArgs>();
   app.add_option("input", a->input, "glTF file (.glb or .gltf) with KHR_gaussian_splatting")->required();
   app.add_option("output", a->output, "Asset to write (.atex)")->required();
+  atex::cli::AddForceFlag(app, &a->force);
   app.add_flag("--json", a->json, "Print a machine-readable summary");
   return [a]() { return RunImport(*a); };
 }

@@ -162,9 +162,9 @@ atex::cli::Runner SetupInfo(CLI::App& app) {
   app.add_flag("--json", *json, "Machine-readable output");
   return [path, json]() {
     auto bytes = atex::ReadFileBytes(*path);
-    if (!bytes.ok()) return atex::cli::Fail("info", bytes.status());
+    if (!bytes.ok()) return atex::cli::Fail("info", bytes.status(), *path);
     auto info = atex::InspectContainer(bytes->data(), bytes->size());
-    if (!info.ok()) return atex::cli::Fail("info", info.status().WithContext(*path));
+    if (!info.ok()) return atex::cli::Fail("info", info.status().WithContext(*path), *path);
     auto asset = atex::DecodeAsset(bytes->data(), bytes->size());
     if (!asset.ok()) {
       // The table is still useful to see which chunk is damaged.
@@ -172,7 +172,7 @@ atex::cli::Runner SetupInfo(CLI::App& app) {
         atex::cli::PrintJson({{"file", *path}, {"chunks", ChunkTableJson(*bytes, *info)},
                               {"error", asset.status().ToString()}});
       }
-      return atex::cli::Fail("info", asset.status().WithContext(*path));
+      return atex::cli::Fail("info", asset.status().WithContext(*path), *path);
     }
     if (!*json) {
       PrintText(*path, *bytes, *info, *asset);

@@ -19,7 +19,7 @@ struct PackOptions {
   std::string texels = "keep";
   std::string sh = "keep";
   int level = 3;
-  bool json = false;
+  bool json = false, force = false;
 };
 
 const std::map<std::string, atex::Codec> kCodecs = {{"raw", atex::Codec::kRaw},
@@ -75,11 +75,16 @@ atex::cli::Runner SetupPack(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--level", o->level, "zstd level")->check(CLI::Range(-7, 22))->capture_default_str();
   app.add_flag("--json", o->json, "Machine-readable output");
+  atex::cli::AddForceFlag(app, &o->force);
   return [o]() {
+    // The input is read whole before the atomic write: in == out is allowed with --force.
+    if (atex::Status s = atex::cli::CheckOutput(o->out, o->force, {{o->in}, {".atex"}, "OUT"}); !s.ok()) {
+      return atex::cli::Fail("pack", s, o->out);
+    }
     auto in_bytes = atex::ReadFileBytes(o->in);
-    if (!in_bytes.ok()) return atex::cli::Fail("pack", in_bytes.status());
+    if (!in_bytes.ok()) return atex::cli::Fail("pack", in_bytes.status(), o->in);
     auto asset = atex::DecodeAsset(in_bytes->data(), in_bytes->size());
-    if (!asset.ok()) return atex::cli::Fail("pack", asset.status().WithContext(o->in));
+    if (!asset.ok()) return atex::cli::Fail("pack", asset.status().WithContext(o->in), o->in);
     atex::WriteOptions w = InputEncodings(*in_bytes);
     w.codec = kCodecs.at(o->codec);
     w.zstd_level = o->level;
@@ -94,7 +99,7 @@ atex::cli::Runner SetupPack(CLI::App& app) {
     auto out_bytes = atex::EncodeAsset(*asset, w);
     if (!out_bytes.ok()) return atex::cli::Fail("pack", out_bytes.status());
     const atex::Status written = atex::WriteFileAtomic(o->out, *out_bytes);
-    if (!written.ok()) return atex::cli::Fail("pack", written);
+    if (!written.ok()) return atex::cli::Fail("pack", written, o->out);
     const double ratio = out_bytes->empty() ? 0.0 : static_cast<double>(in_bytes->size()) / out_bytes->size();
     if (o->json) {
       atex::cli::PrintJson({{"in", o->in},

@@ -7,9 +7,12 @@
 #include "atex/container.h"
 #include "atex/dataset.h"
 #include "atex/file_io.h"
+#include "atex/train/checkpoint.h"
+#include "atex/train/config_check.h"
 #include "atex/train/trainer.h"
 #include "backend_select.h"
 #include "cli.h"
+#include "cli_parse.h"
 
 namespace {
 
@@ -20,14 +23,20 @@ struct TrainArgs {
   std::vector<std::string> overrides;
   int checkpoint_every = -1;
   long long seed = -1;
-  bool json = false, print_config = false, fp32 = false, profile = false;
+  bool json = false, print_config = false, fp32 = false, profile = false, force = false;
   double time_limit = 0;
 };
 
-atex::StatusOr<atex::train::TrainConfig> BuildConfig(const TrainArgs& a, const atex::Dataset* data) {
+// The config of this run: the dataset kind's defaults with the dataset's background (or the
+// --init asset's, whose model was trained on it), or a resumed checkpoint's config; then
+// --config, --set and the flags on top. Not yet validated (CrossCheckConfig does that).
+atex::StatusOr<atex::train::TrainConfig> BuildConfig(const TrainArgs& a, const atex::Dataset* data,
+                                                     const atex::Asset* initial) {
   using namespace atex;
   std::string kind = a.dataset.kind == "dnerf-npz" ? "dnerf" : a.dataset.kind;  // --print-config without a dataset
+  DatasetKind dataset_kind = ParseDatasetKind(a.dataset.kind).ok() ? *ParseDatasetKind(a.dataset.kind) : DatasetKind::kAuto;
   if (data) {
+    dataset_kind = data->kind();
     switch (data->kind()) {
       case DatasetKind::kPanoptic: kind = "panoptic"; break;
       case DatasetKind::kDNerf:
@@ -37,7 +46,14 @@ atex::StatusOr<atex::train::TrainConfig> BuildConfig(const TrainArgs& a, const a
     }
   }
   train::TrainConfig config = train::DefaultConfig(kind);
-  if (data) config.background = data->background();
+  config.background = data ? data->background() : DefaultBackground(dataset_kind);
+  if (initial) config.background = initial->metadata.background;
+  if (!a.resume.empty()) {
+    ATEX_ASSIGN_OR_RETURN(train::Checkpoint cp, train::ReadCheckpoint(a.resume));
+    if (cp.trainer.contains("config")) {
+      ATEX_ASSIGN_OR_RETURN(config, train::ConfigFromJson(cp.trainer.at("config"), config));
+    }
+  }
   if (!a.config_file.empty()) {
     ATEX_ASSIGN_OR_RETURN(auto bytes, ReadFileBytes(a.config_file, 16 << 20));
     const auto json = nlohmann::json::parse(bytes.begin(), bytes.end(), nullptr, false);
@@ -59,43 +75,60 @@ int RunTrain(const TrainArgs& a) {
   using namespace atex;
   const char* cmd = "train";
   if (a.print_config) {
-    auto config = BuildConfig(a, nullptr);
+    auto config = BuildConfig(a, nullptr, nullptr);
     if (!config.ok()) return cli::Fail(cmd, config.status());
     cli::PrintJson(train::ConfigToJson(*config));
     return cli::kExitOk;
   }
-  if (a.data.empty() || a.out.empty()) {
-    std::cerr << "atex train: --data and --out are required (see --help)\n";
-    return cli::kExitUsage;
+  if (a.data.empty() || a.out.empty()) return cli::Usage(cmd, "--data and --out are required (see --help)");
+  int stages = 0;
+  if (a.stage == "1") {
+    stages = train::kStage1;
+  } else if (a.stage == "2") {
+    stages = train::kStage2;
+  } else if (a.stage == "all") {
+    stages = train::kBothStages;
+  } else {
+    return cli::Usage(cmd, "--stage must be 1, 2 or all");
+  }
+  // The output is checked before hours of training, not after.
+  if (Status s = cli::CheckOutput(a.out, a.force, {{a.init, a.data, a.config_file}, {".atex"}, "--out"}); !s.ok()) {
+    return cli::Fail(cmd, s, a.out);
   }
   auto dataset = cli::OpenDatasetArgs(a.data, a.dataset);
-  if (!dataset.ok()) return cli::Fail(cmd, dataset.status());
+  if (!dataset.ok()) return cli::Fail(cmd, dataset.status(), a.data);
   for (const auto& w : (*dataset)->warnings()) std::cerr << "atex train: note: " << w << "\n";
-  auto config = BuildConfig(a, dataset->get());
+  Asset initial;
+  if (!a.init.empty()) {
+    auto asset = ReadAssetFile(a.init);
+    if (!asset.ok()) return cli::Fail(cmd, asset.status().WithContext(a.init), a.init);
+    initial = std::move(*asset);
+  }
+  auto config = BuildConfig(a, dataset->get(), a.init.empty() ? nullptr : &initial);
   if (!config.ok()) return cli::Fail(cmd, config.status());
+  // One background: the frames are composited on the training background (a setting
+  // different from the dataset's default reopens it with that background).
+  std::string background_reason = DefaultBackgroundReason((*dataset)->kind());
+  if (config->background != (*dataset)->background()) {
+    auto reopened = cli::OpenDatasetArgs(a.data, a.dataset, &config->background);
+    if (!reopened.ok()) return cli::Fail(cmd, reopened.status(), a.data);
+    dataset = std::move(reopened);
+    background_reason = a.init.empty() ? "set by the config" : "the --init asset's";
+  } else if (!a.init.empty()) {
+    background_reason = "the --init asset's";
+  }
+  const auto& bg = config->background;
+  std::cerr << "atex train: background [" << bg[0] << ", " << bg[1] << ", " << bg[2] << "] (" << background_reason
+            << ")\n";
+  if (Status s = train::CrossCheckConfig(*config, **dataset, stages, nullptr); !s.ok()) return cli::Fail(cmd, s);
 
   train::TrainerOptions options;
   options.config = *config;
-  if (a.stage == "1") {
-    options.stages = train::kStage1;
-  } else if (a.stage == "2") {
-    options.stages = train::kStage2;
-  } else if (a.stage == "all") {
-    options.stages = train::kBothStages;
-  } else {
-    std::cerr << "atex train: --stage must be 1, 2 or all\n";
-    return cli::kExitUsage;
-  }
+  options.stages = stages;
   options.checkpoint_dir = a.checkpoint_dir;
   options.resume_dir = a.resume;
   options.metrics_csv = a.metrics;
 
-  Asset initial;
-  if (!a.init.empty()) {
-    auto asset = ReadAssetFile(a.init);
-    if (!asset.ok()) return cli::Fail(cmd, asset.status().WithContext(a.init));
-    initial = std::move(*asset);
-  }
   cli::BackendChoice choice;
   choice.tf32 = !a.fp32;
   choice.profile = a.profile;
@@ -129,8 +162,9 @@ int RunTrain(const TrainArgs& a) {
 
   WriteOptions write;
   const Status written = WriteAssetFile(a.out, summary->asset, write);
-  if (!written.ok()) return cli::Fail(cmd, written.WithContext(a.out));
+  if (!written.ok()) return cli::Fail(cmd, written.WithContext(a.out), a.out);
   nlohmann::json report = train::SummaryToJson(*summary);
+  report["background"] = {{"rgb", config->background}, {"reason", background_reason}};
   report["output"] = a.out;
   report["backend"] = backend->description;
   if (a.profile) report["profile"] = backend->backend->Profile();
@@ -165,16 +199,21 @@ atex::cli::Runner SetupTrain(CLI::App& app) {
   app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
   app.add_option("--init", a->init, "Stage-1 asset to start stage 2 from");
   app.add_option("--checkpoint-dir", a->checkpoint_dir, "Write periodic checkpoints here (atomically)");
-  app.add_option("--checkpoint-every", a->checkpoint_every, "Steps between checkpoints (overrides the config)");
-  app.add_option("--resume", a->resume, "Continue from a checkpoint folder");
+  atex::cli::AddInt(app, "--checkpoint-every", &a->checkpoint_every, 0, 100000000,
+                    "Steps between checkpoints (overrides the config)");
+  app.add_option("--resume", a->resume,
+                 "Continue from a checkpoint folder, with its config (--config/--set may change schedules, not the "
+                 "model) on the dataset it was trained on");
   app.add_option("--metrics", a->metrics, "Write a metrics CSV (one row per logged step)");
   atex::cli::AddDatasetOptions(app, &a->dataset);
-  app.add_option("--seed", a->seed, "Random seed (default: the config's, 6666)");
+  atex::cli::AddInt64(app, "--seed", &a->seed, 0, std::numeric_limits<long long>::max(),
+                      "Random seed (default: the config's, 6666)");
   app.add_flag("--print-config", a->print_config, "Print the default config as JSON and exit");
   app.add_flag("--fp32", a->fp32, "CUDA: full FP32 for the deformation MLP (default: TF32 tensor cores)");
   app.add_flag("--profile", a->profile, "CUDA: time each stage of a training step (in the --json report)");
-  app.add_option("--time-limit", a->time_limit,
-                 "Stop after this many seconds of training and write what there is (0 = no limit)");
+  atex::cli::AddReal(app, "--time-limit", &a->time_limit, 0, 1e9,
+                     "Stop after this many seconds of training and write what there is (0 = no limit)");
+  atex::cli::AddForceFlag(app, &a->force);
   app.add_flag("--json", a->json, "Machine-readable report on stdout");
   return [a]() { return RunTrain(*a); };
 }

@@ -15,15 +15,7 @@ atex::cli::Runner SetupVerify(CLI::App& app) {
   app.add_flag("--json", *json, "Machine-readable output (also on failure)");
   return [path, json]() {
     auto fail = [&](const atex::Status& status) {
-      if (*json) {
-        atex::cli::PrintJson({{"file", *path},
-                              {"valid", false},
-                              {"error",
-                               {{"code", static_cast<int>(status.code())},
-                                {"name", std::string(atex::StatusCodeName(status.code()))},
-                                {"message", status.message()}}}});
-      }
-      return atex::cli::Fail("verify", status);
+      return atex::cli::Fail("verify", status, *path, {{"file", *path}, {"valid", false}});
     };
     auto bytes = atex::ReadFileBytes(*path);
     if (!bytes.ok()) return fail(bytes.status());

@@ -1,4 +1,6 @@
 // atex: the AdaTex4D toolkit's command line. Subcommands live in cmd_*.cc.
+#include <string_view>
+
 #include <CLI/CLI.hpp>
 
 #include "atex/version.h"
@@ -15,11 +17,20 @@ int main(int argc, char** argv) {
     CLI::App* sub = app.add_subcommand(command.name, command.description);
     runners.emplace_back(sub, command.setup(*sub));
   }
+  // Errors are JSON on stdout too when the command line asks for JSON (cli.h, Fail): the one
+  // place that decides it, before any command runs.
+  for (int i = 1; i < argc; ++i) {
+    if (std::string_view(argv[i]) == "--json") atex::cli::SetJsonErrors(true);
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
-    return code == 0 ? atex::cli::kExitOk : atex::cli::kExitUsage;
+    if (code == 0) return atex::cli::kExitOk;  // --help, --version
+    if (atex::cli::JsonErrors()) {
+      atex::cli::PrintJson(atex::cli::ErrorJson(atex::Status(atex::StatusCode::kInvalidArgument, e.what()), {}));
+    }
+    return atex::cli::kExitUsage;
   }
   for (auto& [sub, run] : runners) {
     if (sub->parsed()) return run();

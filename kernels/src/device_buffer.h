@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <utility>
 #include <vector>
 
@@ -38,7 +39,15 @@ class DeviceBuffer {
     }
     const size_t capacity = n + n / 4;  // headroom: densification grows arrays step by step
     T* fresh = nullptr;
-    ATEX_CUDA_RETURN_IF_ERROR(cudaMalloc(&fresh, capacity * sizeof(T)));
+    if (capacity > SIZE_MAX / sizeof(T)) {
+      return MakeError(StatusCode::kLimitExceeded, "device buffer of ", n, " elements of ", sizeof(T),
+                       " bytes overflows the address space");
+    }
+    const cudaError_t allocated = cudaMalloc(&fresh, capacity * sizeof(T));
+    if (allocated == cudaErrorMemoryAllocation) {
+      return OutOfDeviceMemory("cudaMalloc (device buffer)", capacity * sizeof(T), __FILE__, __LINE__);
+    }
+    ATEX_CUDA_RETURN_IF_ERROR(allocated);
     if (keep && size_ > 0) {
       const cudaError_t e = cudaMemcpy(fresh, data_, size_ * sizeof(T), cudaMemcpyDeviceToDevice);
       if (e != cudaSuccess) {

@@ -19,6 +19,7 @@ endfunction()
 
 atex_cuda_test(deform_parity_test deform_parity_test.cc)
 atex_cuda_test(loss_parity_test loss_parity_test.cc)
+atex_cuda_test(memory_limit_test memory_limit_test.cc)
 
 # GPU benchmark of the deformation network and the loss (bench/bench_cuda_deform.cu). Built here
 # because it needs atex_cuda; bench/CMakeLists.txt globs only bench_*.cc.

@@ -143,7 +143,7 @@ TEST_F(Cli, PackReencodesAndReportsSizes) {
   EXPECT_EQ(*StreamEncodingOf(packed->data(), packed->size(), info->chunks[6]), ScalarEncoding::kQuant8);
   EXPECT_EQ(Run("verify '" + out + "'").exit_code, 0);
   // Encodings without an option keep the input's: rotations stay f16, opacities q8.
-  r = Run("pack '" + golden_ + "' '" + out + "' --codec zstd");
+  r = Run("pack '" + golden_ + "' '" + out + "' --codec zstd --force");  // replaces the first output
   ASSERT_EQ(r.exit_code, 0) << r.err;
   packed = ReadFileBytes(out);
   info = InspectContainer(packed->data(), packed->size());
@@ -152,7 +152,7 @@ TEST_F(Cli, PackReencodesAndReportsSizes) {
   EXPECT_EQ(*StreamEncodingOf(packed->data(), packed->size(), info->chunks[5]), ScalarEncoding::kQuant8);
   EXPECT_EQ(*StreamEncodingOf(packed->data(), packed->size(), info->chunks[7]), ScalarEncoding::kQuant8);
   // Text form.
-  r = Run("pack '" + golden_ + "' '" + out + "' --codec delta-shuffle-zstd");
+  r = Run("pack '" + golden_ + "' '" + out + "' --codec delta-shuffle-zstd -f");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("packed"), std::string::npos);
   EXPECT_NE(r.out.find("positions"), std::string::npos);

@@ -1,5 +1,6 @@
 // ImportFourDGaussians: a 4DGaussians output folder -> Asset.
 #include <algorithm>
+#include <cstring>
 #include <filesystem>
 #include <system_error>
 
@@ -71,8 +72,21 @@ StatusOr<Asset> ImportFourDGaussians(const std::string& folder_or_iteration_dir,
                                       iteration_dir.parent_path().parent_path() / "cfg_args"}) {
       if (!IsFile(candidate)) continue;
       ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> text, ReadFileBytes(candidate.string(), 1 << 20));
-      const Status parsed = ParseFourDgsCfgArgs(std::string(text.begin(), text.end()), &flags);
+      const std::string cfg(text.begin(), text.end());
+      const Status parsed = ParseFourDgsCfgArgs(cfg, &flags);
       if (!parsed.ok()) return parsed.WithContext(candidate.string());
+      // 4DGaussians writes every ModelHiddenParams field: a cfg_args without all five head
+      // switches is garbled, and its defaults would silently drop heads the checkpoint has.
+      std::string missing;
+      for (const char* key : {"no_dx=", "no_ds=", "no_dr=", "no_do=", "no_dshs="}) {
+        if (cfg.rfind("Namespace(", 0) != 0 || cfg.find(key) == std::string::npos) {
+          missing += StrCat(missing.empty() ? "" : ", ", std::string_view(key).substr(0, std::strlen(key) - 1));
+        }
+      }
+      if (!missing.empty()) {
+        return MakeError(StatusCode::kCorrupt, candidate.string(), ": not a 4DGaussians Namespace(...) with the head "
+                         "switches (missing: ", missing, "); fix it, or pass read_cfg_args = false with the flags");
+      }
       flags_from = candidate.string();
       break;
     }

@@ -277,6 +277,24 @@ void WriteIteration(const std::filesystem::path& dir, const Gaussians& g, const 
   ASSERT_TRUE(WriteFileAtomic((dir / "deformation.pth").string(), StateDictArchive(ToStateDict(f), "deformation/")).ok());
 }
 
+// Issue 24: a garbled cfg_args (cut, or not a Namespace) silently lost the opacity and SH
+// heads to 4DGaussians' defaults; now it is kCorrupt naming the missing switches.
+TEST(FourDgsImport, GarbledCfgArgsIsRefused) {
+  testing::TempDir tmp;
+  WriteIteration(tmp.path() / "point_cloud" / "iteration_1000", SmallGaussians(12, 4),
+                 RandomFourDgsField({1, 2}, {3, 4, 3, 5}, 2, 6, 1, 10));
+  for (const char* garbled : {"Namespace(no_dx=False, no_ds=False, no_d", "\x00\x17garbage no_dx=False",
+                              "Namespace(sh_degree=3)"}) {
+    WriteText(tmp.path() / "cfg_args", garbled);
+    auto asset = ImportFourDGaussians(tmp.path().string());
+    EXPECT_EQ(asset.status().code(), StatusCode::kCorrupt) << garbled;
+    EXPECT_NE(asset.status().message().find("no_do"), std::string::npos) << asset.status().ToString();
+  }
+  FourDgsImportOptions skip;
+  skip.read_cfg_args = false;
+  EXPECT_TRUE(ImportFourDGaussians(tmp.path().string(), skip).ok());
+}
+
 TEST(FourDgsImport, ModelFolderIterationsCfgArgsAndOverrides) {
   testing::TempDir tmp;
   const Gaussians g = SmallGaussians(12, 4);

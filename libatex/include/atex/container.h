@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "atex/model.h"
+#include "atex/file_io.h"
 #include "atex/status.h"
 
 namespace atex {
@@ -61,8 +62,14 @@ struct ReadOptions {
   // Off: skip the header and chunk CRC32C checks (for fuzzing and forensics; every
   // structural check still runs).
   bool verify_checksums = true;
-  // Refuse files whose chunks' raw sizes add up to more than this (kLimitExceeded).
-  uint64_t max_decoded_bytes = uint64_t{32} << 30;
+  // Refuse files whose chunks' raw sizes add up to more than this (kLimitExceeded):
+  // 32 GiB, or half the machine's RAM when smaller (MemoryLimit, file_io.h).
+  uint64_t max_decoded_bytes = MemoryLimit(uint64_t{32} << 30);
+  // Refuse files whose chunks' raw sizes exceed this many times the file's size once they
+  // pass expansion_check_floor (a decompression bomb: kilobytes of zeros declaring gigabytes). Real
+  // assets compress a few times at most; 0 turns the check off.
+  uint64_t max_expansion_ratio = 1024;
+  uint64_t expansion_check_floor = uint64_t{64} << 20;  // decoded sizes below this are never a bomb
   bool read_stats = true;  // decode GSTA into Asset::stats
 };
 

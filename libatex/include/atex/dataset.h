@@ -37,6 +37,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -54,6 +55,14 @@ struct InMemoryFrame;
 
 enum class DatasetKind { kAuto, kPanoptic, kDNerf, kDNerfNpz, kN3dv, kInMemory };
 
+// The background a dataset kind's published results use, the default of
+// DatasetOptions::background and of the training config: white for D-NeRF folders (RGBA
+// frames, composited on white by D-NeRF and 4DGaussians' evaluation); black for the rest,
+// including the tiny lego .npz, whose frames were stored with alpha dropped on black.
+std::array<float, 3> DefaultBackground(DatasetKind kind);
+// One line saying where that default comes from (for logs and reports).
+std::string DefaultBackgroundReason(DatasetKind kind);
+
 // "panoptic", "dnerf", "dnerf-npz", "n3dv", "in-memory", "auto".
 const char* DatasetKindName(DatasetKind kind);
 // Inverse of DatasetKindName; kInvalidArgument for an unknown name.
@@ -68,7 +77,8 @@ struct DatasetOptions {
   // (Panoptic: cam ids of either meta file; N3DV: camera index, default {0}).
   // Not meaningful for D-NeRF (kInvalidArgument when set).
   std::vector<int> test_cameras;
-  // Background RGB; default black (also for D-NeRF's RGBA frames, to match the tiny lego).
+  // Background RGB that RGBA frames are composited on; default DefaultBackground(kind):
+  // the dataset's published convention.
   std::optional<std::array<float, 3>> background;
   bool load_val_split = false;  // D-NeRF / lego .npz: also expose the val frames (val_views())
   // Stress settings (applied after the loader, to every layout; a warning says what was kept):
@@ -107,6 +117,12 @@ class Dataset {
   float time_min() const { return time_min_; }
   float time_max() const { return time_max_; }
   std::array<float, 3> background() const { return background_; }
+  // False when DatasetOptions::background chose it, true for DefaultBackground(kind()).
+  bool background_is_default() const { return background_is_default_; }
+  // Whether any decoded frame so far had an alpha channel (RGBA, grey + alpha); the
+  // background only changes the images of such frames. Decodes the first training view
+  // when none was decoded yet (errors count as "no alpha").
+  bool frames_have_alpha() const;
   // Nearest and farthest scene depth seen by the cameras where the dataset
   // states them (N3DV's poses_bounds); {0, 0} when unknown.
   std::array<float, 2> depth_bounds() const { return depth_bounds_; }
@@ -140,6 +156,7 @@ class Dataset {
   int timestep_count_ = 0;
   float time_min_ = 0, time_max_ = 1;
   std::array<float, 3> background_{0, 0, 0};
+  bool background_is_default_ = true;
   std::array<float, 2> depth_bounds_{0, 0};
   bool has_masks_ = false;
   int downscale_ = 1;
@@ -152,8 +169,10 @@ class Dataset {
   // DatasetOptions::timestep_stride and train_cameras, on the views the loader made.
   Status SelectViews(const DatasetOptions& options);
 
+  void NoteAlpha(const Image& decoded) const;
   uint64_t cache_limit_;
   std::shared_ptr<ImageCache> cache_;
+  mutable std::atomic<bool> alpha_known_{false}, alpha_seen_{false};
 };
 
 // The views of the earliest timestep among `views` (all of them when they have no timestep,

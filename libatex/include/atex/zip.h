@@ -21,13 +21,14 @@
 #include <string_view>
 #include <vector>
 
+#include "atex/file_io.h"
 #include "atex/status.h"
 
 namespace atex {
 
 struct ZipLimits {
   uint64_t max_entries = 1u << 20;                  // central directory records
-  uint64_t max_member_bytes = uint64_t{16} << 30;   // uncompressed size of one member
+  uint64_t max_member_bytes = MemoryLimit(uint64_t{16} << 30);  // uncompressed size of one member (<= RAM / 2)
 };
 
 struct ZipEntry {

@@ -179,6 +179,12 @@ class AssetDecoder {
                          ", raw size ", e.raw_size, ")");
       }
     }
+    // A decompression bomb: checked before anything is inflated.
+    const uint64_t ratio = options_.max_expansion_ratio;
+    if (ratio > 0 && total > options_.expansion_check_floor && total / ratio > size_) {
+      return MakeError(StatusCode::kLimitExceeded, "chunks declare ", total, " decoded bytes from a file of ", size_,
+                       " bytes, more than ", ratio, " times its size (ReadOptions::max_expansion_ratio)");
+    }
     return Status::Ok();
   }
 

@@ -4,6 +4,8 @@
 // SH degree 0..3).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <cstring>
 
@@ -297,6 +299,27 @@ TEST(RoundTrip, DecodedSizeLimit) {
   r.max_decoded_bytes = 1000;
   auto back = DecodeAsset(bytes->data(), bytes->size(), r);
   EXPECT_EQ(back.status().code(), StatusCode::kLimitExceeded);
+}
+
+// Issue 24: a 7.9 KB file declaring 1.3 GB decoded was read and called valid. Chunks that
+// declare more than max_expansion_ratio x the file are refused before anything inflates;
+// the default decode limit is never above the machine's RAM.
+TEST(RoundTrip, DecompressionBombIsRefusedBeforeInflating) {
+  Asset asset = MakeSyntheticAsset({});
+  std::fill(asset.gaussians.sh.begin(), asset.gaussians.sh.end(), 0.0f);  // compresses far
+  WriteOptions w;
+  w.codec = Codec::kZstd;
+  auto bytes = EncodeAsset(asset, w);
+  ASSERT_TRUE(bytes.ok());
+  ReadOptions r;
+  EXPECT_TRUE(DecodeAsset(bytes->data(), bytes->size(), r).ok());  // below the 64 MiB floor
+  r.expansion_check_floor = 0;
+  r.max_expansion_ratio = 1;  // the raw sizes exceed the file's
+  auto back = DecodeAsset(bytes->data(), bytes->size(), r);
+  EXPECT_EQ(back.status().code(), StatusCode::kLimitExceeded);
+  EXPECT_NE(back.status().message().find("times its size"), std::string::npos) << back.status().ToString();
+  EXPECT_LE(ReadOptions{}.max_decoded_bytes, std::max<uint64_t>(PhysicalMemoryBytes() / 2, 1))
+      << "the default decode limit exceeds half the machine's RAM";
 }
 
 }  // namespace

@@ -12,6 +12,16 @@
 #include <string>
 
 namespace atex {
+
+uint64_t PhysicalMemoryBytes() {
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && page > 0 ? uint64_t(pages) * uint64_t(page) : 0;
+}
+
+uint64_t MemoryLimit(uint64_t cap) {
+  const uint64_t ram = PhysicalMemoryBytes();
+  return ram > 0 ? std::min(cap, ram / 2) : cap;
+}
 namespace {
 
 std::string ErrnoText(int err) { return std::strerror(err); }

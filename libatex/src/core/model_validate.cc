@@ -2,6 +2,7 @@
 // or used (model.h, format_spec/atex.md). Messages name the array and element.
 #include <bit>
 #include <cmath>
+#include <limits>
 #include <cstdint>
 #include <string>
 
@@ -18,25 +19,33 @@ Status CheckSize(const char* what, size_t actual, size_t expected) {
   return Status::Ok();
 }
 
-// Every value finite; `row_width` turns a flat index into "row r component c".
-Status CheckFinite(const char* what, const std::vector<float>& values, size_t row_width) {
-  // A branch-free pass (vectorises; this runs on every encode and decode), then the
-  // position of the first bad value only when there is one.
+// Every value finite and |value| <= max_abs; `row_width` turns a flat index into "row r
+// component c".
+Status CheckFinite(const char* what, const std::vector<float>& values, size_t row_width,
+                   float max_abs = std::numeric_limits<float>::max()) {
+  // A branch-free pass (vectorises; this runs on every encode and decode): for non-negative
+  // floats the bit patterns order as the values, and NaN/inf lie above every finite bound.
+  const uint32_t limit = std::bit_cast<uint32_t>(max_abs);
   uint32_t bad = 0;
-  for (float v : values) bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(v) & 0x7F800000u) == 0x7F800000u);
+  for (float v : values) bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(v) & 0x7FFFFFFFu) > limit);
   if (bad == 0) return Status::Ok();
   for (size_t i = 0; i < values.size(); ++i) {
     if (!std::isfinite(values[i])) {
       return MakeError(StatusCode::kOutOfRange, what, " element ", i / row_width, " component ", i % row_width,
                        " is not finite (", values[i], ")");
     }
+    if (std::abs(values[i]) > max_abs) {
+      return MakeError(StatusCode::kOutOfRange, what, " element ", i / row_width, " component ", i % row_width,
+                       " is ", values[i], ", beyond the largest magnitude a renderer can use (", max_abs, ")");
+    }
   }
   return Status::Ok();
 }
 
-Status CheckArray(const char* what, const std::vector<float>& values, size_t rows, size_t row_width) {
+Status CheckArray(const char* what, const std::vector<float>& values, size_t rows, size_t row_width,
+                  float max_abs = std::numeric_limits<float>::max()) {
   ATEX_RETURN_IF_ERROR(CheckSize(what, values.size(), rows * row_width));
-  return CheckFinite(what, values, row_width == 0 ? 1 : row_width);
+  return CheckFinite(what, values, row_width == 0 ? 1 : row_width, max_abs);
 }
 
 Status ValidateGaussians(const Gaussians& g) {
@@ -45,7 +54,7 @@ Status ValidateGaussians(const Gaussians& g) {
   }
   const size_t n = g.size();
   ATEX_RETURN_IF_ERROR(CheckArray("positions", g.positions, n, 3));
-  ATEX_RETURN_IF_ERROR(CheckArray("rotations", g.rotations, n, 4));
+  ATEX_RETURN_IF_ERROR(CheckArray("rotations", g.rotations, n, 4, limits::kMaxAbsRotation));
   ATEX_RETURN_IF_ERROR(CheckArray("log_scales", g.log_scales, n, 3));
   ATEX_RETURN_IF_ERROR(CheckArray("opacity_logits", g.opacity_logits, n, 1));
   ATEX_RETURN_IF_ERROR(CheckArray("sh", g.sh, n, static_cast<size_t>(g.sh_coeffs()) * 3));
@@ -138,8 +147,9 @@ Status ValidateLinear(const std::string& name, const Linear& layer, int in, int 
   if (layer.in != in || layer.out != out) {
     return MakeError(StatusCode::kInvalidArgument, name, " is ", layer.in, "->", layer.out, ", expected ", in, "->", out);
   }
-  ATEX_RETURN_IF_ERROR(CheckArray((name + " weight").c_str(), layer.weight, static_cast<size_t>(out), in));
-  return CheckArray((name + " bias").c_str(), layer.bias, static_cast<size_t>(out), 1);
+  ATEX_RETURN_IF_ERROR(
+      CheckArray((name + " weight").c_str(), layer.weight, static_cast<size_t>(out), in, limits::kMaxAbsNetworkValue));
+  return CheckArray((name + " bias").c_str(), layer.bias, static_cast<size_t>(out), 1, limits::kMaxAbsNetworkValue);
 }
 
 Status ValidateDeformation(const DeformationField& d, int gaussian_sh_coeffs) {
@@ -155,7 +165,7 @@ Status ValidateDeformation(const DeformationField& d, int gaussian_sh_coeffs) {
       const size_t expected = static_cast<size_t>(g.channels) * g.resolution(s, kHexPlaneAxes[p][0]) *
                               g.resolution(s, kHexPlaneAxes[p][1]);
       const std::string name = StrCat("deformation plane (scale ", s, ", plane ", p, ")");
-      ATEX_RETURN_IF_ERROR(CheckArray(name.c_str(), d.planes[s][p], expected, 1));
+      ATEX_RETURN_IF_ERROR(CheckArray(name.c_str(), d.planes[s][p], expected, 1, limits::kMaxAbsNetworkValue));
     }
   }
   if (d.trunk.size() != static_cast<size_t>(c.trunk_layers)) {

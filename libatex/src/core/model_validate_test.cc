@@ -58,6 +58,11 @@ TEST(ValidateAsset, RefusesEachViolationWithItsCodeAndPosition) {
       {"multires", [](Asset& a) { a.deformation->config.grid.multires = {}; }, StatusCode::kOutOfRange, "scales"},
       {"plane size", [](Asset& a) { a.deformation->planes[1][4].pop_back(); }, StatusCode::kInvalidArgument, "scale 1, plane 4"},
       {"nan grid", [=](Asset& a) { a.deformation->planes[0][2][3] = nan; }, StatusCode::kOutOfRange, "scale 0, plane 2"},
+      // Issue 24: finite values `render` cannot use were called valid by `verify`.
+      {"huge grid", [](Asset& a) { a.deformation->planes[0][1][2] = 1e38f; }, StatusCode::kOutOfRange, "scale 0, plane 1"},
+      {"huge mlp weight", [](Asset& a) { a.deformation->trunk[0].weight[5] = 2.7e37f; }, StatusCode::kOutOfRange, "largest magnitude"},
+      {"huge head bias", [](Asset& a) { a.deformation->heads[0][0].bias[0] = -1e7f; }, StatusCode::kOutOfRange, "head 0"},
+      {"huge rotation", [](Asset& a) { a.gaussians.rotations[4 * 3 + 2] = 1e30f; }, StatusCode::kOutOfRange, "rotations element 3 component 2"},
       {"trunk shape", [](Asset& a) { a.deformation->trunk[1].in = 3; }, StatusCode::kInvalidArgument, "trunk layer 1"},
       {"head weight", [](Asset& a) { a.deformation->heads[2][1].weight.pop_back(); }, StatusCode::kInvalidArgument, "head 2 layer 1"},
       {"disabled head not empty", [](Asset& a) { a.deformation->config.heads[kHeadOpacity] = false; }, StatusCode::kInvalidArgument, "head 3"},

@@ -10,6 +10,7 @@
 #include <sstream>
 #include <set>
 
+#include "atex/file_io.h"
 #include "data/dataset_loaders.h"
 #include "data/image_cache.h"
 
@@ -53,10 +54,45 @@ StatusOr<DatasetKind> ParseDatasetKind(const std::string& name) {
 Dataset::Dataset(std::string name, DatasetKind kind, const DatasetOptions& options)
     : name_(std::move(name)),
       kind_(kind),
-      background_(options.background.value_or(std::array<float, 3>{0, 0, 0})),
+      background_(options.background.value_or(DefaultBackground(kind))),
+      background_is_default_(!options.background.has_value()),
       downscale_(options.downscale),
-      cache_limit_(options.image_cache_bytes),
-      cache_(std::make_shared<ImageCache>(options.image_cache_bytes)) {}
+      cache_limit_(MemoryLimit(options.image_cache_bytes)),
+      cache_(std::make_shared<ImageCache>(cache_limit_)) {
+  // A cache larger than the machine degrades to half its RAM: images beyond it reload.
+  if (cache_limit_ < options.image_cache_bytes) {
+    warnings_.push_back(StrCat("image cache limited to ", cache_limit_ >> 20, " MiB (half the machine's RAM) instead of ",
+                               options.image_cache_bytes >> 20, " MiB; images beyond it are decoded again when needed"));
+  }
+}
+
+std::array<float, 3> DefaultBackground(DatasetKind kind) {
+  if (kind == DatasetKind::kDNerf) return {1.0f, 1.0f, 1.0f};
+  return {0.0f, 0.0f, 0.0f};
+}
+
+std::string DefaultBackgroundReason(DatasetKind kind) {
+  switch (kind) {
+    case DatasetKind::kDNerf: return "white: D-NeRF's RGBA frames are composited on white in its published results";
+    case DatasetKind::kDNerfNpz: return "black: the tiny lego .npz stores its frames with alpha dropped on black";
+    default: return "black: the frames have no alpha (the background only shows where no Gaussian covers)";
+  }
+}
+
+bool Dataset::frames_have_alpha() const {
+  if (alpha_known_.load()) return alpha_seen_.load();
+  if (!train_.empty()) {
+    StatusOr<Image> decoded = ReadViewImage(train_.front());
+    if (decoded.ok()) NoteAlpha(*decoded);
+  }
+  alpha_known_ = true;
+  return alpha_seen_.load();
+}
+
+void Dataset::NoteAlpha(const Image& decoded) const {
+  if (decoded.channels == 2 || decoded.channels == 4) alpha_seen_ = true;
+  alpha_known_ = true;
+}
 
 StatusOr<Image> Dataset::ReadViewMask(const View& view) const {
   return MakeError(StatusCode::kNotFound, name_, ": no mask for ", view.camera.name);
@@ -69,6 +105,7 @@ StatusOr<std::shared_ptr<const Image>> Dataset::LoadImage(const View& view) cons
   if (auto hit = cache_->Find(key)) return hit;
   StatusOr<Image> decoded = ReadViewImage(view);
   if (!decoded.ok()) return decoded.status();
+  NoteAlpha(*decoded);
   ATEX_ASSIGN_OR_RETURN(Image image, DownscaleImage(ToRgb(*decoded, background_), downscale_));
   if (image.width != view.camera.width || image.height != view.camera.height) {
     return MakeError(StatusCode::kCorrupt, view.image, ": image is ", decoded->width, "x", decoded->height,

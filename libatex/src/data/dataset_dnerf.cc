@@ -187,7 +187,11 @@ class LegoNpzDataset final : public Dataset {
     if (!options.test_cameras.empty()) {
       return MakeError(StatusCode::kInvalidArgument, file_, ": test_cameras cannot be chosen for the lego .npz");
     }
-    ATEX_ASSIGN_OR_RETURN(auto arrays, ReadNpzFile(file_));
+    // The images stay in memory as float32: a member larger than the image cache could hold
+    // (twice that for float64) is refused from the ZIP directory, before it is inflated.
+    ZipLimits limits;
+    limits.max_member_bytes = std::min(limits.max_member_bytes, 2 * options.image_cache_bytes + (uint64_t{1} << 20));
+    ATEX_ASSIGN_OR_RETURN(auto arrays, ReadNpzFile(file_, limits));
     for (const char* key : {"images", "poses", "times", "focal"}) {
       if (!arrays.count(key)) return MakeError(StatusCode::kCorrupt, file_, ": no '", key, "' array");
     }
@@ -196,9 +200,19 @@ class LegoNpzDataset final : public Dataset {
         images.shape[1] > kMaxImageSide || images.shape[2] > kMaxImageSide) {
       return MakeError(StatusCode::kCorrupt, file_, ": 'images' must be (N, H, W, 3)");
     }
+    if (images.dtype != NpyDtype::kFloat32 && images.dtype != NpyDtype::kFloat64) {
+      return MakeError(StatusCode::kCorrupt, file_, ": 'images' are ", NpyDtypeDescr(images.dtype),
+                       "; the packed layout stores float32 in [0, 1]");
+    }
     const int64_t n = images.shape[0];
     height_ = static_cast<int>(images.shape[1]);
     width_ = static_cast<int>(images.shape[2]);
+    const uint64_t float_bytes = uint64_t(std::max<int64_t>(n, 0)) * uint64_t(height_) * uint64_t(width_) * 3 * 4;
+    if (float_bytes > options.image_cache_bytes) {
+      return MakeError(StatusCode::kLimitExceeded, file_, ": 'images' need ", float_bytes,
+                       " bytes in memory, more than the image cache's ", options.image_cache_bytes,
+                       " (DatasetOptions::image_cache_bytes)");
+    }
     if (n != kLegoFrames) {
       return MakeError(StatusCode::kUnsupported, file_, ": ", n, " frames; the packed D-NeRF layout has ",
                        kLegoFrames, " (50 train, 11 val, 20 test)");
@@ -208,6 +222,13 @@ class LegoNpzDataset final : public Dataset {
     ATEX_ASSIGN_OR_RETURN(const double focal, arrays["focal"].Scalar(file_ + ": 'focal'"));
     if (!(focal > 0) || !std::isfinite(focal)) return MakeError(StatusCode::kCorrupt, file_, ": focal ", focal);
     pixels_ = images.ToFloat();  // [N][H][W][3]
+    for (size_t k = 0; k < pixels_.size(); ++k) {
+      if (!(pixels_[k] >= 0.0f && pixels_[k] <= 1.0f)) {
+        const size_t frame = k / (size_t(width_) * height_ * 3);
+        return MakeError(StatusCode::kCorrupt, file_, ": 'images' value ", pixels_[k], " at element ", k, " (frame ",
+                         frame, ") is outside [0, 1]");
+      }
+    }
     const std::vector<double> poses = arrays["poses"].ToDouble();  // [N][4][4]
     const std::vector<double> times = arrays["times"].ToDouble();  // [N]
 

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "atex/dataset.h"
+#include "atex/file_io.h"
 #include "atex/npy.h"
 #include "core/test_support.h"
 
@@ -163,6 +164,8 @@ TEST(LegoNpz, SplitsIntrinsicsAndCameras) {
   ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
   const Dataset& d = **dataset;
   EXPECT_EQ(d.kind(), DatasetKind::kDNerfNpz);
+  EXPECT_EQ(d.background(), (std::array<float, 3>{0.0f, 0.0f, 0.0f}));  // its frames are on black
+  EXPECT_FALSE(d.frames_have_alpha());
   EXPECT_EQ(d.train_views().size(), 50u);
   EXPECT_EQ(d.val_views().size(), 11u);
   EXPECT_EQ(d.test_views().size(), 20u);
@@ -265,6 +268,49 @@ TEST(DNerf, BlenderPosesRgbaFramesAndMissingFiles) {
   EXPECT_FLOAT_EQ((*mask)->at(6, 1, 0), 0.0f);
   options.test_cameras = {0};
   EXPECT_EQ(OpenDataset(dir.path().string(), options).status().code(), StatusCode::kInvalidArgument);
+}
+
+// A D-NeRF folder of one train and one test RGBA frame (left half opaque red, right half transparent).
+void WriteRgbaDNerfFolder(const fs::path& dir) {
+  nlohmann::json meta = nlohmann::json::parse(R"({"camera_angle_x": 0.69, "frames": [{"file_path": "./r_000",
+      "time": 0.0, "transform_matrix": [[1,0,0,0],[0,0,-1,-4],[0,1,0,0],[0,0,0,1]]}]})");
+  WriteText(dir / "transforms_train.json", meta.dump());
+  WriteText(dir / "transforms_test.json", meta.dump());
+  Image rgba(8, 6, 4);
+  for (int y = 0; y < 6; ++y) {
+    for (int x = 0; x < 8; ++x) {
+      rgba.at(x, y, 0) = 1.0f;
+      rgba.at(x, y, 3) = x < 4 ? 1.0f : 0.0f;
+    }
+  }
+  ASSERT_TRUE(WriteImage((dir / "r_000.png").string(), rgba).ok());
+}
+
+// Issue 24: D-NeRF's published convention composites its RGBA frames on white; a dataset
+// opened without a background follows it, and says so. The tiny lego .npz (alpha dropped on
+// black when it was packed) keeps black.
+TEST(DNerf, DefaultBackgroundIsTheDatasetsConvention) {
+  testing::TempDir dir;
+  WriteRgbaDNerfFolder(dir.path());
+  auto dataset = OpenDataset(dir.path().string());
+  ASSERT_TRUE(dataset.ok()) << dataset.status().ToString();
+  const Dataset& d = **dataset;
+  EXPECT_TRUE(d.background_is_default());
+  EXPECT_EQ(d.background(), (std::array<float, 3>{1.0f, 1.0f, 1.0f}));
+  EXPECT_TRUE(d.frames_have_alpha());
+  auto image = d.LoadImage(d.train_views()[0]);
+  ASSERT_TRUE(image.ok()) << image.status().ToString();
+  EXPECT_FLOAT_EQ((*image)->at(6, 1, 1), 1.0f);  // transparent: white
+  EXPECT_FLOAT_EQ((*image)->at(1, 1, 1), 0.0f);  // opaque red
+  EXPECT_NE(DefaultBackgroundReason(DatasetKind::kDNerf).find("white"), std::string::npos);
+  DatasetOptions black;
+  black.background = std::array<float, 3>{0.0f, 0.0f, 0.0f};
+  auto explicit_black = OpenDataset(dir.path().string(), black);
+  ASSERT_TRUE(explicit_black.ok());
+  EXPECT_FALSE((*explicit_black)->background_is_default());
+  EXPECT_FLOAT_EQ((*(*explicit_black)->LoadImage((*explicit_black)->train_views()[0]))->at(6, 1, 1), 0.0f);
+  EXPECT_EQ(DefaultBackground(DatasetKind::kDNerfNpz), (std::array<float, 3>{0.0f, 0.0f, 0.0f}));
+  EXPECT_EQ(DefaultBackground(DatasetKind::kPanoptic), (std::array<float, 3>{0.0f, 0.0f, 0.0f}));
 }
 
 TEST(DNerf, NonRigidPoseIsRefused) {
@@ -555,6 +601,60 @@ TEST(Panoptic, TimestepStrideAndSparseTrainCameras) {
   EXPECT_EQ(cams, (std::set<int>{1, 5, 11, 16, 21, 25}));
   EXPECT_DOUBLE_EQ(d.test_views().back().camera.time, 1.0);  // t = 8 of 0..8
   EXPECT_EQ(d.test_views().back().timestep, 2);
+}
+
+// Issue 24: the packed lego layout with the wrong dtype, values outside [0, 1], or images
+// larger than the image cache is refused when opened, naming the problem.
+TEST(LegoNpz, ImagesAreFloatInRangeAndFitTheCache) {
+  testing::TempDir dir;
+  const int64_t n = 81, side = 4;
+  std::vector<float> pixels(n * side * side * 3, 0.5f);
+  std::vector<double> poses;
+  for (int64_t i = 0; i < n; ++i) {
+    for (double v : {1, 0, 0, 0, 0, 0, -1, -4, 0, 1, 0, 0, 0, 0, 0, 1}) poses.push_back(v);
+  }
+  std::vector<double> times(n);
+  for (int64_t i = 0; i < n; ++i) times[i] = double(i % 10) / 9.0;
+  const auto write = [&](const NpyArray& images, const std::string& name) {
+    std::map<std::string, NpyArray> arrays = {{"images", images},
+                                              {"poses", NpyArray::FromDoubles({n, 4, 4}, poses)},
+                                              {"times", NpyArray::FromDoubles({n}, times)},
+                                              {"focal", NpyArray::FromDoubles({}, {5.0})}};
+    const std::string path = (dir / name).string();
+    EXPECT_TRUE(WriteNpzFile(path, arrays, true).ok());
+    return path;
+  };
+  const std::string good = write(NpyArray::FromFloats({n, side, side, 3}, pixels), "good.npz");
+  ASSERT_TRUE(OpenDataset(good).ok()) << OpenDataset(good).status().ToString();
+  NpyArray bytes;
+  bytes.dtype = NpyDtype::kUint8;
+  bytes.shape = {n, side, side, 3};
+  bytes.data.assign(pixels.size(), 128);
+  auto u8 = OpenDataset(write(bytes, "u8.npz"));
+  EXPECT_EQ(u8.status().code(), StatusCode::kCorrupt);
+  EXPECT_NE(u8.status().message().find("|u1"), std::string::npos) << u8.status().ToString();
+  pixels[3 * side * side * 3 + 7] = 1.5f;
+  auto bright = OpenDataset(write(NpyArray::FromFloats({n, side, side, 3}, pixels), "bright.npz"));
+  EXPECT_EQ(bright.status().code(), StatusCode::kCorrupt);
+  EXPECT_NE(bright.status().message().find("frame 3"), std::string::npos) << bright.status().ToString();
+  DatasetOptions small;
+  small.image_cache_bytes = 1000;  // the 81 frames need 15,552 bytes
+  auto big = OpenDataset(good, small);
+  EXPECT_EQ(big.status().code(), StatusCode::kLimitExceeded);
+  EXPECT_NE(big.status().message().find("image cache"), std::string::npos) << big.status().ToString();
+}
+
+// A cache larger than the machine degrades to half its RAM, with a warning.
+TEST(ImageCache, LargerThanRamDegradesWithAWarning) {
+  ATEX_REQUIRE_DATA_FILE(npz, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  DatasetOptions options;
+  options.image_cache_bytes = uint64_t{1} << 62;
+  auto d = OpenDataset(npz.string(), options);
+  ASSERT_TRUE(d.ok()) << d.status().ToString();
+  if (PhysicalMemoryBytes() == 0) GTEST_SKIP() << "physical memory unknown";
+  EXPECT_LE((*d)->cache_limit(), PhysicalMemoryBytes() / 2);
+  ASSERT_FALSE((*d)->warnings().empty());
+  EXPECT_NE((*d)->warnings().back().find("half the machine's RAM"), std::string::npos);
 }
 
 TEST(LegoNpz, TimestepStrideIsRefusedTrainCamerasSelectFrames) {

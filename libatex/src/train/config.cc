@@ -1,6 +1,7 @@
 #include "atex/train/config.h"
 
 #include <cmath>
+#include <limits>
 
 namespace atex {
 
@@ -154,7 +155,60 @@ TrainConfig DefaultConfig(std::string_view dataset_kind) {
 
 nlohmann::json ConfigToJson(const TrainConfig& config) { return config; }
 
-// Every key of `patch` must exist in `reference` (recursively, for objects).
+// The JSON type name used in messages.
+static const char* TypeName(const nlohmann::json& j) {
+  if (j.is_number_integer()) return "an integer";
+  if (j.is_number_float()) return "a real number";
+  return j.type_name();
+}
+
+// Whether `value` may replace `reference` (a value of the default config) without a silent
+// conversion: integers stay integers (1.5 is not 1, true is not 1), unsigned values are not
+// negative, booleans stay booleans, fixed-length arrays keep their length.
+static Status CheckType(const nlohmann::json& value, const nlohmann::json& reference, const std::string& key) {
+  const auto mismatch = [&](const char* wanted) {
+    return MakeError(StatusCode::kInvalidArgument, "training config key '", key, "' = ", value.dump(), " is ",
+                     TypeName(value), ", not ", wanted);
+  };
+  if (reference.is_boolean()) return value.is_boolean() ? Status::Ok() : mismatch("true or false");
+  if (reference.is_number_unsigned()) {
+    if (value.is_number_unsigned() || (value.is_number_integer() && value.get<long long>() >= 0)) return Status::Ok();
+    return mismatch("an integer >= 0");
+  }
+  if (reference.is_number_integer()) {
+    if (!value.is_number_integer()) return mismatch("an integer");
+    const long long v = value.is_number_unsigned() ? -1 : value.get<long long>();
+    if (value.is_number_unsigned() ? value.get<unsigned long long>() > unsigned(std::numeric_limits<int>::max())
+                                   : (v > std::numeric_limits<int>::max() || v < std::numeric_limits<int>::min())) {
+      return MakeError(StatusCode::kOutOfRange, "training config key '", key, "' = ", value.dump(),
+                       " does not fit a 32-bit integer");
+    }
+    return Status::Ok();
+  }
+  if (reference.is_number_float()) return value.is_number() ? Status::Ok() : mismatch("a number");
+  if (reference.is_string()) return value.is_string() ? Status::Ok() : mismatch("a string");
+  if (reference.is_array()) {
+    if (!value.is_array()) return mismatch("an array");
+    // std::array members (background, grid.base_resolution) have a fixed length.
+    static const char* const kFixed[] = {"background", "stage1.deformation.grid.base_resolution"};
+    for (const char* fixed : kFixed) {
+      if (key == fixed && value.size() != reference.size()) {
+        return MakeError(StatusCode::kInvalidArgument, "training config key '", key, "' = ", value.dump(), " has ",
+                         value.size(), " values, not ", reference.size());
+      }
+    }
+    if (!reference.empty()) {
+      for (size_t k = 0; k < value.size(); ++k) {
+        ATEX_RETURN_IF_ERROR(CheckType(value[k], reference[0], StrCat(key, "[", k, "]")));
+      }
+    }
+    return Status::Ok();
+  }
+  if (reference.is_object() && !value.is_object()) return mismatch("an object");
+  return Status::Ok();
+}
+
+// Every key of `patch` must exist in `reference` (recursively, for objects), with a value of its type.
 static Status CheckKnownKeys(const nlohmann::json& patch, const nlohmann::json& reference, const std::string& path) {
   if (!patch.is_object()) return Status::Ok();
   for (auto it = patch.begin(); it != patch.end(); ++it) {
@@ -162,6 +216,7 @@ static Status CheckKnownKeys(const nlohmann::json& patch, const nlohmann::json& 
     if (!reference.is_object() || !reference.contains(it.key())) {
       return MakeError(StatusCode::kInvalidArgument, "unknown training config key '", key_path, "'");
     }
+    ATEX_RETURN_IF_ERROR(CheckType(it.value(), reference.at(it.key()), key_path));
     ATEX_RETURN_IF_ERROR(CheckKnownKeys(it.value(), reference.at(it.key()), key_path));
   }
   return Status::Ok();

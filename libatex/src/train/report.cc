@@ -83,6 +83,7 @@ nlohmann::json SummaryToJson(const TrainSummary& s) {
       {"densifications", s.densifications.size()},
       {"growth", growth},
       {"events", s.events},
+      {"warnings", s.warnings},
       {"stopped_by_time_limit", s.stopped_by_time_limit},
       {"peak_memory_bytes", s.peak_memory_bytes},
   };

@@ -2,6 +2,7 @@
 # interface and its CPU implementation.
 list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/config.cc
+  ${CMAKE_CURRENT_LIST_DIR}/config_check.cc
   ${CMAKE_CURRENT_LIST_DIR}/schedule.cc
   ${CMAKE_CURRENT_LIST_DIR}/densify.cc
   ${CMAKE_CURRENT_LIST_DIR}/texture_growth.cc
@@ -15,7 +16,8 @@ list(APPEND ATEX_LIB_SOURCES
 function(atex_train_tests)
   set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
   atex_add_test(NAME train_test LIBS atex SOURCES
-    ${dir}/checkpoint_test.cc ${dir}/config_test.cc ${dir}/densify_test.cc ${dir}/schedule_test.cc ${dir}/texture_growth_test.cc
+    ${dir}/checkpoint_test.cc ${dir}/config_test.cc ${dir}/config_check_test.cc ${dir}/densify_test.cc
+    ${dir}/schedule_test.cc ${dir}/texture_growth_test.cc
     ${dir}/colour_correction_test.cc ${dir}/camera_colours_test.cc ${PROJECT_SOURCE_DIR}/libatex/src/render/render_test_util.cc)
   # The loop on the real tiny lego (CPU backend): a few minutes, its own executable so that
   # CTest runs it beside the others.

@@ -10,6 +10,7 @@
 #include "atex/render.h"
 #include "atex/train/camera_colours.h"
 #include "atex/train/checkpoint.h"
+#include "atex/train/config_check.h"
 #include "atex/train/schedule.h"
 #include "atex/world_up.h"
 
@@ -109,6 +110,9 @@ class Loop {
 
   StatusOr<TrainSummary> Run(const Asset* initial) {
     if (data_.train_views().empty()) return MakeError(StatusCode::kInvalidArgument, "dataset has no training views");
+    // Every value in range and no contradiction with the dataset before anything trains.
+    ATEX_RETURN_IF_ERROR(CrossCheckConfig(config_, data_, options_.stages, &summary_.warnings));
+    for (const std::string& w : summary_.warnings) Event("warning: " + w);
     extent_ = CameraExtent(data_.train_views());
     if (!options_.metrics_csv.empty()) {
       csv_.open(options_.metrics_csv, std::ios::out | std::ios::trunc);
@@ -119,6 +123,7 @@ class Loop {
     int start_step = 0;
     if (!options_.resume_dir.empty()) {
       ATEX_ASSIGN_OR_RETURN(Checkpoint cp, ReadCheckpoint(options_.resume_dir));
+      ATEX_RETURN_IF_ERROR(CheckResumable(cp));
       metadata_ = cp.metadata;
       const std::string phase = cp.trainer.value("phase", "coarse");
       start_phase = phase == "fine" ? Phase::kFine : phase == "textures" ? Phase::kTextures : Phase::kCoarse;
@@ -134,6 +139,14 @@ class Loop {
       if (initial == nullptr || !initial->deformation) {
         return MakeError(StatusCode::kInvalidArgument,
                          "stage 2 alone needs a stage-1 asset with a deformation field (--init)");
+      }
+      for (int k = 0; k < 3; ++k) {
+        if (std::abs(initial->metadata.background[k] - config_.background[k]) > 1e-6f) {
+          return MakeError(StatusCode::kInvalidArgument, "background [", config_.background[0], ",",
+                           config_.background[1], ",", config_.background[2], "] differs from the --init asset's [",
+                           initial->metadata.background[0], ",", initial->metadata.background[1], ",",
+                           initial->metadata.background[2], "], the one its stage-1 model was trained on");
+        }
       }
       metadata_ = initial->metadata;
       ATEX_RETURN_IF_ERROR(backend_.Load(StateFromAsset(*initial)));
@@ -164,6 +177,29 @@ class Loop {
   }
 
  private:
+  // A checkpoint continues on its own dataset and model (config_check.h, CheckResumeConfig).
+  Status CheckResumable(const Checkpoint& cp) {
+    const std::string dir = options_.resume_dir;
+    if (cp.trainer.contains("dataset")) {
+      const std::string name = cp.trainer.value("dataset", "");
+      const size_t views = cp.trainer.value("train_views", size_t{0});
+      if (name != data_.name() || (views != 0 && views != data_.train_views().size())) {
+        return MakeError(StatusCode::kInvalidArgument, "--resume ", dir, ": the checkpoint was trained on dataset '",
+                         name, "' (", views, " training views), not '", data_.name(), "' (",
+                         data_.train_views().size(), ")");
+      }
+    } else {
+      Event(StrCat("note: checkpoint ", dir, " does not name its dataset (written before issue 24); not checked"));
+    }
+    if (cp.trainer.contains("config")) {
+      ATEX_ASSIGN_OR_RETURN(TrainConfig saved, ConfigFromJson(cp.trainer.at("config"), config_));
+      std::vector<std::string> changed;
+      ATEX_RETURN_IF_ERROR(CheckResumeConfig(saved, config_, &changed).WithContext(dir));
+      for (const std::string& c : changed) Event("resume: changed " + c);
+    }
+    return Status::Ok();
+  }
+
   std::vector<Phase> PhasesToRun(Phase start) const {
     std::vector<Phase> phases;
     if (options_.stages & kStage1) {
@@ -585,7 +621,9 @@ class Loop {
     ModelState state;
     ATEX_RETURN_IF_ERROR(backend_.Save(&state));
     nlohmann::json trainer = {{"phase", PhaseName(phase)}, {"step", step},          {"lr_scale", lr_scale_},
-                              {"total_steps", total_steps_}, {"config", ConfigToJson(config_)}};
+                              {"total_steps", total_steps_}, {"config", ConfigToJson(config_)},
+                              {"dataset", data_.name()}, {"dataset_kind", DatasetKindName(data_.kind())},
+                              {"train_views", data_.train_views().size()}};
     // The writer checks that the metadata's texture mode matches the textures (stage 2
     // starts from a stage-1 asset whose metadata says "none").
     Metadata metadata = metadata_;

@@ -45,6 +45,7 @@
 #include <vector>
 
 #include "atex/model.h"
+#include "atex/file_io.h"
 #include "atex/status.h"
 
 namespace atex {
@@ -57,7 +58,7 @@ enum class SpzAxes : uint8_t {
 struct SpzReadOptions {
   SpzAxes axes = SpzAxes::kOpenCv;
   uint64_t max_points = uint64_t{1} << 28;             // refuse files announcing more Gaussians
-  uint64_t max_decompressed_bytes = uint64_t{16} << 30;  // refuse files that inflate to more
+  uint64_t max_decompressed_bytes = MemoryLimit(uint64_t{16} << 30);  // refuse files that inflate to more (<= RAM / 2)
 };
 
 struct SpzWriteOptions {

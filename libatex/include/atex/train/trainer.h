@@ -84,6 +84,7 @@ struct TrainSummary {
   std::vector<DensifyReport> densifications;
   std::vector<GrowthReport> growths;
   std::vector<std::string> events;  // rollbacks and other notes, in order
+  std::vector<std::string> warnings;  // suspicious settings (CrossCheckConfig), also in events
   bool stopped_by_time_limit = false;
   EvalResult test;                  // test views at the end (empty when the dataset has none)
   uint64_t peak_memory_bytes = 0;
