@@ -107,6 +107,34 @@ void ValidateStage1(const Stage1Config& s, Ranges& r) {
   r.In(p + "init_volume.far", s.init_volume.far, 1e-6, 1e6);
   r.In(p + "init_volume.max_colour_spread", s.init_volume.max_colour_spread, 0.0, 3.0);
   r.In(p + "init_volume.attempts_per_point", s.init_volume.attempts_per_point, 1, 1 << 20);
+  const InitMvsConfig& m = s.init_mvs;  // the ranges of atex/mvs.h's MvsOptions
+  r.In(p + "init_mvs.max_image_side", m.max_image_side, 16, 1 << 15);
+  r.In(p + "init_mvs.near", m.near, 1e-6, 1e6);
+  r.In(p + "init_mvs.far", m.far, m.near, 1e6);
+  r.In(p + "init_mvs.depth_planes", m.depth_planes, 0, 1 << 16);
+  r.In(p + "init_mvs.plane_step_px", m.plane_step_px, 1e-3, 1e3);
+  r.In(p + "init_mvs.max_depth_planes", m.max_depth_planes, 2, 1 << 16);
+  r.In(p + "init_mvs.neighbors", m.neighbors, 1, 16);
+  r.In(p + "init_mvs.best_neighbors", m.best_neighbors, 1, m.neighbors);
+  r.In(p + "init_mvs.window_radius", m.window_radius, 1, 5);
+  r.In(p + "init_mvs.min_zncc", m.min_zncc, -1.0, 1.0);
+  r.In(p + "init_mvs.min_texture", m.min_texture, 0.0, 1.0);
+  r.In(p + "init_mvs.max_cost_ratio", m.max_cost_ratio, 1e-6, 1.0);
+  r.In(p + "init_mvs.min_consistent_views", m.min_consistent_views, 1, 1 << 10);
+  r.In(p + "init_mvs.max_reprojection_px", m.max_reprojection_px, 1e-6, 1e3);
+  r.In(p + "init_mvs.max_relative_depth", m.max_relative_depth, 1e-9, 1.0);
+  if (r.status().ok() && s.init_method == "file" && s.init_point_cloud.empty()) {
+    r.Fail(MakeError(StatusCode::kInvalidArgument, p, "init_method=file needs ", p, "init_point_cloud (a PLY or COLMAP ",
+                     "points3D.txt/.bin)"));
+  }
+}
+
+void ValidateCameraColour(const CameraColourConfig& c, Ranges& r) {
+  const std::string p = "camera_colour.";
+  r.In(p + "first_step", c.first_step, 1, kMaxSteps);
+  r.In(p + "interval", c.interval, 0, kMaxSteps);
+  r.In(p + "views_per_camera", c.views_per_camera, 1, 1 << 16);
+  r.In(p + "keep", c.keep, 1e-6, 1.0);
 }
 
 void ValidateStage2(const Stage2Config& s, Ranges& r) {
@@ -149,6 +177,7 @@ Status ValidateConfig(const TrainConfig& config) {
   ValidateTop(config, r);
   ValidateStage1(config.stage1, r);
   ValidateStage2(config.stage2, r);
+  ValidateCameraColour(config.camera_colour, r);
   return r.status();
 }
 

@@ -67,6 +67,13 @@ TEST(ConfigCheck, OutOfRangeValuesNameTheKey) {
       {"stage1.deformation.grid.multires=[]", "multires"},
       {"stage2.texel_budget_fraction=2", "stage2.texel_budget_fraction"},
       {"stage1.init_method=\"magic\"", "stage1.init_method"},
+      {"stage1.init_method=\"file\"", "stage1.init_point_cloud"},
+      {"stage1.init_mvs.window_radius=0", "stage1.init_mvs.window_radius"},
+      {"stage1.init_mvs.far=0.1", "stage1.init_mvs.far"},
+      {"stage1.init_mvs.best_neighbors=7", "stage1.init_mvs.best_neighbors"},
+      {"camera_colour.keep=0", "camera_colour.keep"},
+      {"camera_colour.views_per_camera=0", "camera_colour.views_per_camera"},
+      {"camera_colour.first_step=0", "camera_colour.first_step"},
   };
   for (const auto& [assignment, key] : cases) {
     TrainConfig config = DefaultConfig("dnerf");
