@@ -9,6 +9,8 @@ list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/cpu_backend.cc
   ${CMAKE_CURRENT_LIST_DIR}/checkpoint.cc
   ${CMAKE_CURRENT_LIST_DIR}/trainer.cc
+  ${CMAKE_CURRENT_LIST_DIR}/stage1_init.cc
+  ${CMAKE_CURRENT_LIST_DIR}/model_state.cc
   ${CMAKE_CURRENT_LIST_DIR}/evaluate.cc
   ${CMAKE_CURRENT_LIST_DIR}/colour_correction.cc
   ${CMAKE_CURRENT_LIST_DIR}/camera_colours.cc

@@ -1,9 +1,15 @@
+// The training loop (atex/train/trainer.h): phases, steps, densification and growth decisions,
+// camera-colour fits, checkpoints, the final asset. One class whose methods share the loop's state
+// (schedules, learning-rate scale, snapshot, summary), which is why this file is over 500 lines;
+// what needs no loop state lives beside it: stage1_init.cc (the starting model), model_state.cc
+// (conversions, bounds, fitter statistics), evaluate.cc, camera_colours.cc, config_check.cc.
 #include "atex/train/trainer.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <tuple>
 
 #include "atex/deform.h"
 #include "atex/init.h"
@@ -12,76 +18,16 @@
 #include "atex/train/checkpoint.h"
 #include "atex/train/config_check.h"
 #include "atex/train/schedule.h"
-#include "atex/world_up.h"
+#include "stage1_init.h"
+#include "trained_asset.h"
 
 namespace atex::train {
-
-double CameraExtent(const std::vector<View>& views) {
-  if (views.empty()) return 1.0;
-  std::array<double, 3> mean{0, 0, 0};
-  for (const View& v : views) {
-    const auto c = v.camera.Center();
-    for (int k = 0; k < 3; ++k) mean[k] += c[k] / views.size();
-  }
-  double radius = 0;
-  for (const View& v : views) {
-    const auto c = v.camera.Center();
-    radius = std::max(radius, std::hypot(c[0] - mean[0], c[1] - mean[1], c[2] - mean[2]));
-  }
-  return radius > 0 ? 1.1 * radius : 1.0;
-}
-
-// The stereo and file settings of stage 1 (init methods "mvs", "mvs+hull", "file"): the
-// stereo takes the points the hull does not (all of init_points for "mvs").
-static void SetMvsInitOptions(const Stage1Config& s1, InitOptions* init) {
-  const InitMvsConfig& c = s1.init_mvs;
-  MvsOptions& m = init->mvs;
-  m.max_image_side = c.max_image_side;
-  m.depth_planes = c.depth_planes;
-  m.plane_step_px = c.plane_step_px;
-  m.max_depth_planes = c.max_depth_planes;
-  m.neighbors = c.neighbors;
-  m.best_neighbors = c.best_neighbors;
-  m.window_radius = c.window_radius;
-  m.min_zncc = c.min_zncc;
-  m.min_texture = c.min_texture;
-  m.max_cost_ratio = c.max_cost_ratio;
-  m.min_consistent_views = c.min_consistent_views;
-  m.max_reprojection_px = c.max_reprojection_px;
-  m.max_relative_depth = c.max_relative_depth;
-  init->mvs_near = c.near;
-  init->mvs_far = c.far;
-  init->point_cloud_path = s1.init_point_cloud;
-  init->file_points = static_cast<int>(s1.init_points);
-  if (s1.init_points > 0) {
-    init->mvs_points = init->method == InitMethod::kMvs ? static_cast<int>(s1.init_points)
-                                                        : static_cast<int>(s1.init_points) - init->hull_points;
-  }
-}
 
 static std::vector<double> ViewTimes(const std::vector<View>& views) {
   std::vector<double> times;
   times.reserve(views.size());
   for (const View& v : views) times.push_back(v.camera.time);
   return times;
-}
-
-ModelState StateFromAsset(const Asset& asset) {
-  ModelState state;
-  state.gaussians = asset.gaussians;
-  state.textures = asset.textures;
-  state.deformation = asset.deformation;
-  ResetMoments(&state);
-  return state;
-}
-
-Asset AssetFromState(const ModelState& state, const Metadata& metadata) {
-  Asset asset;
-  asset.gaussians = state.gaussians;
-  asset.textures = state.textures;
-  asset.deformation = state.deformation;
-  asset.metadata = metadata;
-  return asset;
 }
 
 namespace {
@@ -240,75 +186,10 @@ class Loop {
   }
 
   Status InitializeStage1() {
-    const Stage1Config& s1 = config_.stage1;
-    InitOptions init;
-    ATEX_ASSIGN_OR_RETURN(init.method, ParseInitMethod(s1.init_method));
-    init.seed = config_.seed;
-    init.sh_degree = s1.sh_degree;
-    if (!(s1.init_hull_fraction >= 0 && s1.init_hull_fraction <= 1)) {
-      return MakeError(StatusCode::kInvalidArgument, "stage1.init_hull_fraction ", s1.init_hull_fraction,
-                       " is outside [0, 1]");
-    }
-    if (s1.init_points > 0) {
-      init.cube_points = static_cast<int>(s1.init_points);
-      init.hull_points = static_cast<int>(std::lround(double(s1.init_points) * s1.init_hull_fraction));
-      init.volume_points = static_cast<int>(s1.init_points) - init.hull_points;
-    }
-    init.volume_far = s1.init_volume.far;
-    init.volume_uniform_depth = s1.init_volume.uniform_depth;
-    init.volume_max_colour_spread = s1.init_volume.max_colour_spread;
-    init.volume_attempts_per_point = s1.init_volume.attempts_per_point;
-    SetMvsInitOptions(s1, &init);
-    InitReport report;
-    ATEX_ASSIGN_OR_RETURN(Gaussians gaussians, InitializeGaussians(data_, init, &report));
-    std::string detail = InitMethodName(report.method);
-    if (report.method == InitMethod::kHullAndViewVolume || report.method == InitMethod::kViewVolume) {
-      detail = StrCat(detail, ": ", report.hull_points, " hull, ", report.volume_points, " volume of ",
-                      report.volume_candidates, " candidates");
-    } else if (report.method == InitMethod::kMvs || report.method == InitMethod::kMvsAndHull) {
-      detail = StrCat(detail, ": ", report.hull_points, " hull, ", report.mvs_points, " stereo of ",
-                      report.mvs.fused_points, " fused, ", report.mvs.seconds_total, " s");
-    } else if (report.method == InitMethod::kFile) {
-      detail = StrCat(detail, ": ", report.file_points, " points of ", s1.init_point_cloud);
-    }
-    Event(StrCat("initialised ", gaussians.size(), " Gaussians (", detail, ")"));
-
-    // The deformation field's AABB is the initial cloud's (4DGaussians), time spans [-1, 1].
-    DeformationConfig dc = s1.deformation;
-    dc.sh_coeffs = ShCoeffCount(s1.sh_degree);
-    std::array<float, 3> lo{1e30f, 1e30f, 1e30f}, hi{-1e30f, -1e30f, -1e30f};
-    for (size_t i = 0; i < gaussians.size(); ++i) {
-      for (int k = 0; k < 3; ++k) {
-        lo[k] = std::min(lo[k], gaussians.positions[3 * i + k]);
-        hi[k] = std::max(hi[k], gaussians.positions[3 * i + k]);
-      }
-    }
-    for (int k = 0; k < 3; ++k) {
-      if (!(hi[k] > lo[k])) hi[k] = lo[k] + 1.0f;
-    }
-    dc.aabb_lo = lo;
-    dc.aabb_hi = hi;
-    const double span = data_.time_max() - data_.time_min();
-    dc.time_scale = span > 0 ? static_cast<float>(2.0 / span) : 1.0f;
-    dc.time_offset = span > 0 ? static_cast<float>(-1.0 - 2.0 * data_.time_min() / span) : 0.0f;
-    ATEX_ASSIGN_OR_RETURN(DeformationField field, InitDeformationField(dc, config_.seed));
-
-    metadata_.bounds_min = lo;
-    metadata_.bounds_max = hi;
-    metadata_.time_min = data_.time_min();
-    metadata_.time_max = data_.time_max();
-    metadata_.background = config_.background;
-    {
-      // The world's up axis as the training cameras agree on it (atex/world_up.h).
-      std::vector<Camera> cameras;
-      for (const auto& view : data_.train_views()) cameras.push_back(view.camera);
-      metadata_.up = UpAxisFromCameras(cameras).value_or("");
-    }
-    ModelState state;
-    state.gaussians = std::move(gaussians);
-    state.deformation = std::move(field);
-    ResetMoments(&state);
-    return backend_.Load(state);
+    ATEX_ASSIGN_OR_RETURN(Stage1Start start, InitialStage1State(data_, config_));
+    Event(start.event);
+    metadata_ = std::move(start.metadata);
+    return backend_.Load(start.state);
   }
 
   Status AttachTextures() {
@@ -662,33 +543,12 @@ class Loop {
     if (!colours_.empty()) metadata_.extra["camera_colour"] = colours_.ToJson();
     // Bounds of the final canonical positions.
     if (state.gaussians.size() > 0) {
-      metadata_.bounds_min = {1e30f, 1e30f, 1e30f};
-      metadata_.bounds_max = {-1e30f, -1e30f, -1e30f};
-      for (size_t i = 0; i < state.gaussians.size(); ++i) {
-        for (int k = 0; k < 3; ++k) {
-          metadata_.bounds_min[k] = std::min(metadata_.bounds_min[k], state.gaussians.positions[3 * i + k]);
-          metadata_.bounds_max[k] = std::max(metadata_.bounds_max[k], state.gaussians.positions[3 * i + k]);
-        }
-      }
+      std::tie(metadata_.bounds_min, metadata_.bounds_max) = PositionBounds(state.gaussians);
     }
     summary_.asset = AssetFromState(state, metadata_);
-    // Statistics for the fitter: importance of the last epoch and the texture evidence since the last growth.
     TrainingStats stats;
     ATEX_RETURN_IF_ERROR(backend_.ReadStats(kStatsImportance | (textured ? kStatsTexture : 0), &stats));
-    GaussianStats gs;
-    gs.importance = stats.importance;
-    gs.importance.resize(state.gaussians.size(), 0.0f);
-    if (textured && stats.texture.bins > 0 && stats.texture.demand_sum.size() == state.gaussians.size() * stats.texture.bins) {
-      const GrowthEvidence e = ComputeGrowthEvidence(stats.texture, config_.stage2.ablations);
-      gs.texture_demand = e.score;
-      gs.peak_scale_u = e.scale_u;
-      gs.peak_scale_v = e.scale_v;
-    } else {
-      gs.texture_demand.assign(state.gaussians.size(), 0.0f);
-      gs.peak_scale_u.assign(state.gaussians.size(), 0.0f);
-      gs.peak_scale_v.assign(state.gaussians.size(), 0.0f);
-    }
-    summary_.asset.stats = std::move(gs);
+    summary_.asset.stats = FitterStats(stats, state.gaussians.size(), textured, config_.stage2.ablations);
     if (!data_.test_views().empty()) {
       const Phase last = textured ? Phase::kTextures : Phase::kFine;
       ATEX_ASSIGN_OR_RETURN(summary_.test, Evaluate(data_, backend_, data_.test_views(), EvalRequest(last),
@@ -722,15 +582,6 @@ class Loop {
 };
 
 }  // namespace
-
-RenderRequest RenderRequestFor(const Asset& asset) {
-  RenderRequest r;
-  r.active_sh_degree = asset.gaussians.sh_degree;
-  r.apply_deformation = asset.deformation.has_value();
-  r.use_textures = asset.textures.has_value();
-  r.background = asset.metadata.background;
-  return r;
-}
 
 StatusOr<TrainSummary> Train(const Dataset& dataset, Backend& backend, const TrainerOptions& options,
                              const Asset* initial) {

@@ -1,0 +1,80 @@
+// The conversions between assets, model states and render requests, and the scene extent.
+#include <algorithm>
+#include <cmath>
+
+#include "atex/train/trainer.h"
+#include "trained_asset.h"
+
+namespace atex::train {
+
+double CameraExtent(const std::vector<View>& views) {
+  if (views.empty()) return 1.0;
+  std::array<double, 3> mean{0, 0, 0};
+  for (const View& v : views) {
+    const auto c = v.camera.Center();
+    for (int k = 0; k < 3; ++k) mean[k] += c[k] / views.size();
+  }
+  double radius = 0;
+  for (const View& v : views) {
+    const auto c = v.camera.Center();
+    radius = std::max(radius, std::hypot(c[0] - mean[0], c[1] - mean[1], c[2] - mean[2]));
+  }
+  return radius > 0 ? 1.1 * radius : 1.0;
+}
+
+ModelState StateFromAsset(const Asset& asset) {
+  ModelState state;
+  state.gaussians = asset.gaussians;
+  state.textures = asset.textures;
+  state.deformation = asset.deformation;
+  ResetMoments(&state);
+  return state;
+}
+
+Asset AssetFromState(const ModelState& state, const Metadata& metadata) {
+  Asset asset;
+  asset.gaussians = state.gaussians;
+  asset.textures = state.textures;
+  asset.deformation = state.deformation;
+  asset.metadata = metadata;
+  return asset;
+}
+
+RenderRequest RenderRequestFor(const Asset& asset) {
+  RenderRequest r;
+  r.active_sh_degree = asset.gaussians.sh_degree;
+  r.apply_deformation = asset.deformation.has_value();
+  r.use_textures = asset.textures.has_value();
+  r.background = asset.metadata.background;
+  return r;
+}
+
+std::pair<std::array<float, 3>, std::array<float, 3>> PositionBounds(const Gaussians& gaussians) {
+  std::array<float, 3> lo{1e30f, 1e30f, 1e30f}, hi{-1e30f, -1e30f, -1e30f};
+  for (size_t i = 0; i < gaussians.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], gaussians.positions[3 * i + k]);
+      hi[k] = std::max(hi[k], gaussians.positions[3 * i + k]);
+    }
+  }
+  return {lo, hi};
+}
+
+GaussianStats FitterStats(const TrainingStats& stats, size_t count, bool textured, const GrowthAblations& ablations) {
+  GaussianStats gs;
+  gs.importance = stats.importance;
+  gs.importance.resize(count, 0.0f);
+  if (textured && stats.texture.bins > 0 && stats.texture.demand_sum.size() == count * stats.texture.bins) {
+    const GrowthEvidence e = ComputeGrowthEvidence(stats.texture, ablations);
+    gs.texture_demand = e.score;
+    gs.peak_scale_u = e.scale_u;
+    gs.peak_scale_v = e.scale_v;
+  } else {
+    gs.texture_demand.assign(count, 0.0f);
+    gs.peak_scale_u.assign(count, 0.0f);
+    gs.peak_scale_v.assign(count, 0.0f);
+  }
+  return gs;
+}
+
+}  // namespace atex::train

@@ -1,0 +1,25 @@
+// Stage 1's starting point: the initial Gaussians (atex/init.h, by stage1.init_method), the
+// deformation field over their bounding box, and the metadata a fresh run begins with.
+#pragma once
+
+#include <string>
+
+#include "atex/dataset.h"
+#include "atex/model.h"
+#include "atex/status.h"
+#include "atex/train/backend.h"
+#include "atex/train/config.h"
+
+namespace atex::train {
+
+struct Stage1Start {
+  ModelState state;    // initial Gaussians and deformation field, zero Adam moments
+  Metadata metadata;   // bounds, time range, background, world up axis
+  std::string event;   // the training log's "initialised N Gaussians (...)" line
+};
+
+// Errors of the initialisation (no training views, a stereo run that fuses no point, an
+// unreadable point-cloud file) and kInvalidArgument for an init_hull_fraction outside [0, 1].
+StatusOr<Stage1Start> InitialStage1State(const Dataset& data, const TrainConfig& config);
+
+}  // namespace atex::train
