@@ -166,7 +166,10 @@ int RunFit(const FitArgs& a) {
   if (!backend->note.empty()) std::cerr << "atex fit: " << backend->note << "\n";
   std::unique_ptr<Dataset> dataset;
   if (!a.data.empty()) {
-    auto opened = cli::OpenDatasetArgs(a.data, a.dataset, &input.metadata.background);  // probes match renders
+    // The ground truth is composited on the asset's background, the one its probe renders have.
+    auto input = DecodeAsset(input_bytes->data(), input_bytes->size());
+    if (!input.ok()) return cli::Fail(cmd, input.status().WithContext(a.input));
+    auto opened = cli::OpenDatasetArgs(a.data, a.dataset, &input->metadata.background);
     if (!opened.ok()) return cli::Fail(cmd, opened.status());
     dataset = std::move(*opened);
   }
