@@ -118,7 +118,11 @@ def test_convert_to_ply_and_back(sample, tmp_path):
     assert report["dropped"]  # textures and deformation do not fit in a PLY
     back = atex.read(str(out))
     assert back.gaussian_count == sample.gaussian_count
-    np.testing.assert_allclose(back.gaussians.positions, sample.deform(0.5).positions, atol=1e-5)
+    # The sample's world is +z up (metadata "up"); a 3DGS PLY is -y up, so convert turns the world:
+    # (x, y, z) -> (x, -z, y).
+    p = sample.deform(0.5).positions
+    expected = np.stack([p[:, 0], -p[:, 2], p[:, 1]], axis=1)
+    np.testing.assert_allclose(back.gaussians.positions, expected, atol=1e-5)
 
 
 def test_convert_errors_raise(tmp_path):
