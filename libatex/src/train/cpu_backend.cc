@@ -177,14 +177,10 @@ class CpuBackend final : public Backend {
       ATEX_ASSIGN_OR_RETURN(RenderOutput out, RenderForward<float>(camera, *rendered_gaussians, textures, settings));
       std::vector<float> grad_image(out.color.size());
       // The camera's colour correction acts on a copy: the backward pass needs the render itself.
-      std::vector<float> corrected;
-      const std::vector<float>* compared = &out.color;
       const size_t pixels = size_t(camera.width) * camera.height;
-      if (!view.colour.IsIdentity()) {
-        corrected = out.color;
-        view.colour.Apply(corrected.data(), pixels);
-        compared = &corrected;
-      }
+      std::vector<float> corrected = view.colour.IsIdentity() ? std::vector<float>{} : out.color;
+      if (!corrected.empty()) view.colour.Apply(corrected.data(), pixels);
+      const std::vector<float>* compared = corrected.empty() ? &out.color : &corrected;
       const double loss = PhotometricLoss<float>(compared->data(), target.pixels.data(), camera.width,
                                                  camera.height, request.lambda_dssim, grad_image.data());
       if (!view.colour.IsIdentity()) view.colour.ScaleGradient(grad_image.data(), pixels);
