@@ -75,7 +75,14 @@ int RunTrain(const TrainArgs& a) {
   using namespace atex;
   const char* cmd = "train";
   if (a.print_config) {
-    auto config = BuildConfig(a, nullptr, nullptr);
+    // With --data, the defaults of that dataset's kind (as a run on it would start from).
+    std::unique_ptr<Dataset> data;
+    if (!a.data.empty()) {
+      auto opened = cli::OpenDatasetArgs(a.data, a.dataset);
+      if (!opened.ok()) return cli::Fail(cmd, opened.status(), a.data);
+      data = std::move(*opened);
+    }
+    auto config = BuildConfig(a, data.get(), nullptr);
     if (!config.ok()) return cli::Fail(cmd, config.status());
     cli::PrintJson(train::ConfigToJson(*config));
     return cli::kExitOk;
@@ -208,7 +215,8 @@ atex::cli::Runner SetupTrain(CLI::App& app) {
   atex::cli::AddDatasetOptions(app, &a->dataset);
   atex::cli::AddInt64(app, "--seed", &a->seed, 0, std::numeric_limits<long long>::max(),
                       "Random seed (default: the config's, 6666)");
-  app.add_flag("--print-config", a->print_config, "Print the default config as JSON and exit");
+  app.add_flag("--print-config", a->print_config,
+               "Print the default config as JSON and exit (of --data's dataset kind, or --dataset-kind)");
   app.add_flag("--fp32", a->fp32, "CUDA: full FP32 for the deformation MLP (default: TF32 tensor cores)");
   app.add_flag("--profile", a->profile, "CUDA: time each stage of a training step (in the --json report)");
   atex::cli::AddReal(app, "--time-limit", &a->time_limit, 0, 1e9,

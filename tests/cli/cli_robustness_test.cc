@@ -242,5 +242,23 @@ TEST_F(CliRobustness, JsonErrorsOnStdout) {
   EXPECT_NE(j["error"]["message"].get<std::string>().find("--budget"), std::string::npos) << r.out;
 }
 
+// --print-config with --data prints the defaults a run on that dataset starts from: the Panoptic
+// kind's stereo initialisation and camera colours (issue 20), the lego's D-NeRF defaults.
+TEST_F(CliRobustness, PrintConfigFollowsTheDatasetsKind) {
+  ATEX_REQUIRE_DATA_FILE(meta, "panoptic_basketball/train_meta.json");
+  Result r = Run("train --data '" + meta.parent_path().string() + "' --print-config");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["stage1"]["init_method"], "mvs+hull");
+  EXPECT_EQ(j["camera_colour"]["enabled"], true);
+  r = Run("train --data '" + npz_ + "' --print-config");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["stage1"]["init_method"], "auto");
+  EXPECT_EQ(j["camera_colour"]["enabled"], false);
+  EXPECT_EQ(j["stage1"]["deformation"]["grid"]["channels"], 32);
+  ExpectRefused(Run("train --data '" + Path("missing") + "' --print-config"), 1, "missing", "print-config, no data");
+}
+
 }  // namespace
 }  // namespace atex
