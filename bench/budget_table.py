@@ -2,12 +2,15 @@
 """Markdown tables of a budget matrix (bench/run_matrix.py results.csv) over its seeds.
 
     python3 bench/budget_table.py RESULTS.csv [--budgets full,p25,...] [--baseline uniform] [--method adaptive]
+                                  [--variant NAME] [--dataset NAME]
 
 Prints two tables:
   1. per budget and method: test PSNR, its mean over the seeds that have the cell, the means of
      SSIM, DSSIM1 and DSSIM2, file MiB, the Gaussians kept (mean over seeds, and as a share of
      the same seed's unfitted model), the texels kept (mean) and the fit's seconds (min-max);
   2. per budget: METHOD - BASELINE test PSNR for each seed that has both cells, and their mean.
+A file of several datasets or variants needs --dataset/--variant to pick one (the cells of
+different variants are different models: averaging them would be wrong, so it is an error).
 Budgets come in the order given (default: the order of first appearance in the file), methods in
 charts.py's order. Rows are read as charts.py reads them (not "ok" or without PSNR: left out). The confidence intervals are bench/paired_bootstrap.py's.
 """
@@ -75,12 +78,26 @@ def main(argv=None):
     p.add_argument("--budgets", default="", help="comma-separated budget names, in table order (default: all)")
     p.add_argument("--baseline", default="uniform")
     p.add_argument("--method", default="adaptive")
+    p.add_argument("--variant", default="", help="the variant whose cells to tabulate (needed when there are several)")
+    p.add_argument("--dataset", default="", help="the dataset whose cells to tabulate (needed when there are several)")
     args = p.parse_args(argv)
     try:
         rows, _ = read_rows([args.csv])
     except OSError as e:
         print("budget_table: %s" % e, file=sys.stderr)
         return 2
+    for key in ("dataset", "variant"):
+        wanted = getattr(args, key)
+        if wanted:
+            rows = [r for r in rows if r.get(key, "") == wanted]
+            if not rows:
+                print("budget_table: no rows of %s %r in %s" % (key, wanted, args.csv), file=sys.stderr)
+                return 2
+        names = sorted({r.get(key, "") for r in rows})
+        if len(names) > 1:
+            print("budget_table: %s holds the %ss %s: pick one with --%s" % (args.csv, key, ", ".join(names), key),
+                  file=sys.stderr)
+            return 2
     budgets = [b for b in args.budgets.split(",") if b]
     if not budgets:
         for r in rows:

@@ -335,6 +335,26 @@ class Matrix(Base):
         self.assertEqual(rc, 2)
         self.assertIn("missing.csv", stderr)
 
+    def test_budget_table_never_averages_two_variants(self):
+        fields = ["variant", "seed", "method", "budget", "status", "psnr", "model_mib", "gaussians"]
+        path = os.path.join(self.dir, "variants.csv")
+        with open(path, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=fields)
+            w.writeheader()
+            for variant, psnr in (("base", 28.0), ("late", 27.0)):
+                w.writerow({"variant": variant, "seed": "1", "method": "none", "budget": "full", "status": "ok",
+                            "psnr": psnr, "model_mib": 70.0, "gaussians": 100})
+        tool = os.path.join(SOURCE, "bench", "budget_table.py")
+        rc, _, stderr = run(tool, path)
+        self.assertEqual(rc, 2)
+        self.assertIn("variants base, late", stderr)
+        rc, stdout, stderr = run(tool, path, "--variant", "late")
+        self.assertEqual(rc, 0, stderr)
+        self.assertIn("| full | none | 27.000 | 27.000 |", stdout)
+        rc, _, stderr = run(tool, path, "--variant", "nope")
+        self.assertEqual(rc, 2)
+        self.assertIn("no rows of variant 'nope'", stderr)
+
     def test_failures_become_rows_and_retry_failed_reruns_them(self):
         rc, stdout, stderr = self.matrix(env={"FAKE_ATEX_FAIL": "--textures adaptive"})
         self.assertEqual(rc, 0, stderr)

@@ -143,9 +143,9 @@ TrainConfig DefaultConfig(std::string_view dataset_kind) {
       // the first timestep (walls, floor, people) plus the masks' visual hull instead of hull + view-volume
       // points (whose photo-consistency test accepts points in the air in front of near-textureless
       // walls: the haze), and per-camera colour correction. Measured on basketball (BENCHMARKS.md,
-      // issue 20): test PSNR 28.46 dB (16 test views at fine step 12,000, one seed, H100) against
-      // 24.4-25.3 dB for hull + volume with the same colour correction (three runs, same step); the
-      // colour correction alone: +0.2 to +0.6 dB.
+      // issue 20, third run, two seeds, H100): test PSNR 28.07 dB against 24.69 for hull + volume with
+      // the same colour correction, 27.25 without the colour correction, 26.95 with its first fit after
+      // the coarse stage.
       config.stage1.init_method = "mvs+hull";
       config.camera_colour.enabled = true;
     }
