@@ -11,6 +11,8 @@
 #include "atex/file_io.h"
 #include "gltf/gltf_container.h"
 #include "gltf/gltf_json_util.h"
+#include "gltf/gltf_import_extensions.h"
+#include "gltf/gltf_import_scene.h"
 #include "gltf/gltf_names.h"
 
 #ifdef ATEX_HAVE_TINYGLTF
@@ -26,124 +28,6 @@ namespace atex {
 namespace {
 
 using nlohmann::json;
-using Mat4 = std::array<double, 16>;  // column-major, as glTF's node.matrix
-
-constexpr Mat4 kIdentity = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-
-Mat4 Multiply(const Mat4& a, const Mat4& b) {
-  Mat4 out{};
-  for (int c = 0; c < 4; ++c) {
-    for (int r = 0; r < 4; ++r) {
-      double s = 0;
-      for (int k = 0; k < 4; ++k) s += a[k * 4 + r] * b[c * 4 + k];
-      out[c * 4 + r] = s;
-    }
-  }
-  return out;
-}
-
-StatusOr<Mat4> NodeMatrix(const tinygltf::Node& node, size_t index) {
-  const std::string where = StrCat("nodes[", index, "]");
-  for (const auto* v : {&node.matrix, &node.translation, &node.rotation, &node.scale}) {
-    for (double x : *v) {
-      if (!std::isfinite(x)) return MakeError(StatusCode::kOutOfRange, where, " has a non-finite transform value");
-    }
-  }
-  if (node.matrix.size() == 16) {
-    Mat4 m;
-    std::copy(node.matrix.begin(), node.matrix.end(), m.begin());
-    return m;
-  }
-  if (!node.matrix.empty()) return MakeError(StatusCode::kCorrupt, where, ".matrix has ", node.matrix.size(), " values");
-  double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1};
-  if (!node.translation.empty()) {
-    if (node.translation.size() != 3) return MakeError(StatusCode::kCorrupt, where, ".translation is not 3 numbers");
-    std::copy(node.translation.begin(), node.translation.end(), t);
-  }
-  if (!node.rotation.empty()) {
-    if (node.rotation.size() != 4) return MakeError(StatusCode::kCorrupt, where, ".rotation is not 4 numbers");
-    std::copy(node.rotation.begin(), node.rotation.end(), q);
-    const double n = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    if (!(n > 0)) return MakeError(StatusCode::kCorrupt, where, ".rotation is a zero quaternion");
-    for (double& x : q) x /= n;
-  }
-  if (!node.scale.empty()) {
-    if (node.scale.size() != 3) return MakeError(StatusCode::kCorrupt, where, ".scale is not 3 numbers");
-    std::copy(node.scale.begin(), node.scale.end(), s);
-  }
-  const double x = q[0], y = q[1], z = q[2], w = q[3];
-  const double r[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                       2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                       2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)};  // row-major
-  Mat4 m{};
-  for (int c = 0; c < 3; ++c) {
-    for (int row = 0; row < 3; ++row) m[c * 4 + row] = r[row * 3 + c] * s[c];
-  }
-  m[12] = t[0], m[13] = t[1], m[14] = t[2], m[15] = 1;
-  return m;
-}
-
-// One KHR_gaussian_splatting primitive and where it sits in the scene.
-struct SplatPrimitive {
-  size_t mesh = 0, primitive = 0;
-  Mat4 world = kIdentity;
-};
-
-// Every splat primitive reachable from the default scene (or from all root nodes when
-// the file has no scene), with its node's world transform. Cycles and shared subtrees
-// are refused (glTF requires nodes to form disjoint trees).
-StatusOr<std::vector<SplatPrimitive>> FindSplatPrimitives(const tinygltf::Model& model, const json& doc) {
-  auto is_splat = [&](size_t mesh, size_t primitive) {
-    const json* p = nullptr;
-    try {
-      p = &doc.at("meshes").at(mesh).at("primitives").at(primitive);
-    } catch (...) {
-      return false;
-    }
-    auto e = p->find("extensions");
-    return e != p->end() && e->is_object() && e->contains(gltf::kKhrGaussianSplatting);
-  };
-  std::vector<int> roots;
-  if (!model.scenes.empty()) {
-    int scene = model.defaultScene >= 0 ? model.defaultScene : 0;
-    if (size_t(scene) >= model.scenes.size()) return MakeError(StatusCode::kCorrupt, "'scene' ", scene, " does not exist");
-    roots = model.scenes[size_t(scene)].nodes;
-  } else {
-    std::vector<bool> is_child(model.nodes.size(), false);
-    for (const auto& n : model.nodes) {
-      for (int c : n.children) {
-        if (c >= 0 && size_t(c) < model.nodes.size()) is_child[size_t(c)] = true;
-      }
-    }
-    for (size_t i = 0; i < model.nodes.size(); ++i) {
-      if (!is_child[i]) roots.push_back(int(i));
-    }
-  }
-  std::vector<SplatPrimitive> found;
-  std::vector<bool> visited(model.nodes.size(), false);
-  std::vector<std::pair<int, Mat4>> stack;
-  for (auto it = roots.rbegin(); it != roots.rend(); ++it) stack.push_back({*it, kIdentity});
-  while (!stack.empty()) {
-    auto [index, parent] = stack.back();
-    stack.pop_back();
-    if (index < 0 || size_t(index) >= model.nodes.size()) return MakeError(StatusCode::kCorrupt, "node index ", index, " does not exist");
-    if (visited[size_t(index)]) return MakeError(StatusCode::kCorrupt, "nodes[", index, "] is reached twice (cycle or shared node)");
-    visited[size_t(index)] = true;
-    const tinygltf::Node& node = model.nodes[size_t(index)];
-    ATEX_ASSIGN_OR_RETURN(Mat4 local, NodeMatrix(node, size_t(index)));
-    const Mat4 world = Multiply(parent, local);
-    if (node.mesh >= 0) {
-      if (size_t(node.mesh) >= model.meshes.size()) return MakeError(StatusCode::kCorrupt, "nodes[", index, "].mesh ", node.mesh, " does not exist");
-      const auto& mesh = model.meshes[size_t(node.mesh)];
-      for (size_t p = 0; p < mesh.primitives.size(); ++p) {
-        if (is_splat(size_t(node.mesh), p)) found.push_back({size_t(node.mesh), p, world});
-      }
-    }
-    for (auto c = node.children.rbegin(); c != node.children.rend(); ++c) stack.push_back({*c, world});
-  }
-  return found;
-}
-
 // Reads attribute `name` of a primitive as floats, checking its shape.
 Status ReadAttribute(const tinygltf::Model& model, const tinygltf::Primitive& primitive, const std::string& name,
                      int components, std::initializer_list<int> types, size_t count, std::vector<float>* out,
@@ -253,8 +137,8 @@ StatusOr<Gaussians> ReadBase(const tinygltf::Model& model, const tinygltf::Primi
 }
 
 // Bakes a node transform (rotation + uniform scale + translation) into the Gaussians.
-Status BakeTransform(const Mat4& m, Gaussians& g) {
-  if (m == kIdentity) return Status::Ok();
+Status BakeTransform(const gltf::Mat4& m, Gaussians& g) {
+  if (m == gltf::kIdentity) return Status::Ok();
   double col[3][3];
   double scale[3];
   for (int c = 0; c < 3; ++c) {
@@ -335,156 +219,6 @@ void AppendGaussians(Gaussians& a, const Gaussians& b) {
   a.opacity_logits.insert(a.opacity_logits.end(), b.opacity_logits.begin(), b.opacity_logits.end());
 }
 
-StatusOr<TexturePool> ReadTextures(const tinygltf::Model& model, const tinygltf::Primitive& primitive, const json& ext,
-                                   size_t n) {
-  const std::string where = gltf::kAtexTextures;
-  if (!ext.is_object()) return MakeError(StatusCode::kCorrupt, where, " is not an object");
-  auto it = primitive.attributes.find(gltf::kAttrTextureLayout);
-  if (it == primitive.attributes.end()) return MakeError(StatusCode::kCorrupt, where, ": attribute ", gltf::kAttrTextureLayout, " is missing");
-  ATEX_ASSIGN_OR_RETURN(gltf::AccessorData layout_accessor, gltf::ResolveAccessor(model, it->second, gltf::kAttrTextureLayout));
-  ATEX_RETURN_IF_ERROR(gltf::CheckAccessor(layout_accessor, 4, {gltf::kComponentUnsignedByte}, n, gltf::kAttrTextureLayout));
-  std::vector<uint8_t> layout;
-  ATEX_RETURN_IF_ERROR(gltf::ReadBytes(layout_accessor, gltf::kAttrTextureLayout, &layout));
-  TexturePool t;
-  t.heights.resize(n), t.widths.resize(n), t.axis_u.resize(n), t.axis_v.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    t.heights[i] = layout[i * 4 + 0];
-    t.widths[i] = layout[i * 4 + 1];
-    t.axis_u[i] = layout[i * 4 + 2];
-    t.axis_v[i] = layout[i * 4 + 3];
-    auto side_ok = [](uint8_t s) { return s == 1 || s == 2 || s == 4; };
-    if (!side_ok(t.heights[i]) || !side_ok(t.widths[i]) || t.axis_u[i] > 2 || t.axis_v[i] > 2 || t.axis_u[i] == t.axis_v[i]) {
-      return MakeError(StatusCode::kOutOfRange, gltf::kAttrTextureLayout, " element ", i, " = (", int(t.heights[i]), ", ",
-                       int(t.widths[i]), ", ", int(t.axis_u[i]), ", ", int(t.axis_v[i]), ") is not a valid texture layout");
-    }
-  }
-  t.RebuildOffsets();
-  uint64_t texels_index = 0;
-  ATEX_RETURN_IF_ERROR(gltf::ReadIndex(ext, "texels", model.accessors.size(), where, &texels_index));
-  ATEX_ASSIGN_OR_RETURN(gltf::AccessorData texels, gltf::ResolveAccessor(model, int64_t(texels_index), where + ".texels"));
-  ATEX_RETURN_IF_ERROR(gltf::CheckAccessor(texels, 4, kFloatOnly, t.texel_count(), where + ".texels"));
-  ATEX_RETURN_IF_ERROR(gltf::ReadFloats(texels, where + ".texels", &t.texels));
-  return t;
-}
-
-Status ReadFloatArray(const tinygltf::Model& model, const json& object, const char* key, size_t expected,
-                      const std::string& where, std::vector<float>* out) {
-  uint64_t index = 0;
-  ATEX_RETURN_IF_ERROR(gltf::ReadIndex(object, key, model.accessors.size(), where, &index));
-  const std::string name = where + "." + key;
-  ATEX_ASSIGN_OR_RETURN(gltf::AccessorData a, gltf::ResolveAccessor(model, int64_t(index), name));
-  ATEX_RETURN_IF_ERROR(gltf::CheckAccessor(a, 1, kFloatOnly, expected, name));
-  return gltf::ReadFloats(a, name, out);
-}
-
-Status ReadLinear(const tinygltf::Model& model, const json& layer, int in, int out, const std::string& where, Linear* l) {
-  if (!layer.is_object()) return MakeError(StatusCode::kCorrupt, where, " is not an object");
-  l->in = in;
-  l->out = out;
-  ATEX_RETURN_IF_ERROR(ReadFloatArray(model, layer, "weight", size_t(in) * size_t(out), where, &l->weight));
-  return ReadFloatArray(model, layer, "bias", size_t(out), where, &l->bias);
-}
-
-StatusOr<DeformationField> ReadField(const tinygltf::Model& model, const json& f) {
-  const std::string where = std::string(gltf::kAtexDeformation) + ".field";
-  if (!f.is_object()) return MakeError(StatusCode::kCorrupt, where, " is not an object");
-  DeformationField field;
-  DeformationConfig& c = field.config;
-  auto need = [&](const json& o, const char* key, const std::string& w) -> StatusOr<const json*> {
-    auto it = o.find(key);
-    if (it == o.end()) return MakeError(StatusCode::kCorrupt, w, ": missing '", key, "'");
-    return &*it;
-  };
-  auto read_vec3 = [&](const char* key, std::array<float, 3>* out) -> Status {
-    ATEX_ASSIGN_OR_RETURN(const json* v, need(f, key, where));
-    if (!v->is_array() || v->size() != 3) return MakeError(StatusCode::kCorrupt, where, ".", key, " is not 3 numbers");
-    for (size_t i = 0; i < 3; ++i) ATEX_RETURN_IF_ERROR(gltf::ReadFloatValue((*v)[i], StrCat(where, ".", key, "[", i, "]"), &(*out)[i]));
-    return Status::Ok();
-  };
-  ATEX_RETURN_IF_ERROR(read_vec3("aabbLo", &c.aabb_lo));
-  ATEX_RETURN_IF_ERROR(read_vec3("aabbHi", &c.aabb_hi));
-  ATEX_ASSIGN_OR_RETURN(const json* ts, need(f, "timeScale", where));
-  ATEX_RETURN_IF_ERROR(gltf::ReadFloatValue(*ts, where + ".timeScale", &c.time_scale));
-  ATEX_ASSIGN_OR_RETURN(const json* to, need(f, "timeOffset", where));
-  ATEX_RETURN_IF_ERROR(gltf::ReadFloatValue(*to, where + ".timeOffset", &c.time_offset));
-  constexpr int64_t kMaxDim = 1 << 16;
-  int64_t v = 0;
-  ATEX_ASSIGN_OR_RETURN(const json* width, need(f, "mlpWidth", where));
-  ATEX_RETURN_IF_ERROR(gltf::ReadIntValue(*width, where + ".mlpWidth", 1, kMaxDim, &v));
-  c.mlp_width = int(v);
-  ATEX_ASSIGN_OR_RETURN(const json* shk, need(f, "shCoefficients", where));
-  ATEX_RETURN_IF_ERROR(gltf::ReadIntValue(*shk, where + ".shCoefficients", 1, ShCoeffCount(kMaxShDegree), &v));
-  c.sh_coeffs = int(v);
-
-  ATEX_ASSIGN_OR_RETURN(const json* grid, need(f, "grid", where));
-  if (!grid->is_object()) return MakeError(StatusCode::kCorrupt, where, ".grid is not an object");
-  const std::string gw = where + ".grid";
-  ATEX_ASSIGN_OR_RETURN(const json* channels, need(*grid, "channels", gw));
-  ATEX_RETURN_IF_ERROR(gltf::ReadIntValue(*channels, gw + ".channels", 1, kMaxDim, &v));
-  c.grid.channels = int(v);
-  ATEX_ASSIGN_OR_RETURN(const json* base, need(*grid, "baseResolution", gw));
-  if (!base->is_array() || base->size() != 4) return MakeError(StatusCode::kCorrupt, gw, ".baseResolution is not 4 integers");
-  for (size_t i = 0; i < 4; ++i) {
-    ATEX_RETURN_IF_ERROR(gltf::ReadIntValue((*base)[i], StrCat(gw, ".baseResolution[", i, "]"), 1, kMaxDim, &v));
-    c.grid.base_resolution[i] = int(v);
-  }
-  ATEX_ASSIGN_OR_RETURN(const json* multires, need(*grid, "multires", gw));
-  if (!multires->is_array() || multires->empty() || multires->size() > 8) {
-    return MakeError(StatusCode::kCorrupt, gw, ".multires is not an array of 1..8 integers");
-  }
-  c.grid.multires.clear();
-  for (size_t i = 0; i < multires->size(); ++i) {
-    ATEX_RETURN_IF_ERROR(gltf::ReadIntValue((*multires)[i], StrCat(gw, ".multires[", i, "]"), 1, kMaxDim, &v));
-    c.grid.multires.push_back(int(v));
-  }
-  ATEX_ASSIGN_OR_RETURN(const json* trunk, need(f, "trunk", where));
-  if (!trunk->is_array() || trunk->empty() || trunk->size() > 64) return MakeError(StatusCode::kCorrupt, where, ".trunk is not an array of 1..64 layers");
-  c.trunk_layers = int(trunk->size());
-  ATEX_ASSIGN_OR_RETURN(const json* heads, need(f, "heads", where));
-  if (!heads->is_object()) return MakeError(StatusCode::kCorrupt, where, ".heads is not an object");
-  for (int h = 0; h < kNumDeformHeads; ++h) c.heads[h] = heads->contains(gltf::kHeadNames[h]);
-  for (auto it = heads->begin(); it != heads->end(); ++it) {
-    if (std::find(std::begin(gltf::kHeadNames), std::end(gltf::kHeadNames), it.key()) == std::end(gltf::kHeadNames)) {
-      return MakeError(StatusCode::kCorrupt, where, ".heads has unknown head '", it.key(), "'");
-    }
-  }
-  // Sizes are checked before anything is read (and accessors are bounded by the bytes present).
-  ATEX_RETURN_IF_ERROR(CheckDeformationConfig(c));
-
-  ATEX_ASSIGN_OR_RETURN(const json* planes, need(*grid, "planes", gw));
-  if (!planes->is_array() || planes->size() != c.grid.multires.size()) {
-    return MakeError(StatusCode::kCorrupt, gw, ".planes needs one entry per multires scale (", c.grid.multires.size(), ")");
-  }
-  field.planes.resize(c.grid.multires.size());
-  for (size_t s = 0; s < planes->size(); ++s) {
-    const json& scale = (*planes)[s];
-    if (!scale.is_array() || scale.size() != size_t(kNumHexPlanes)) {
-      return MakeError(StatusCode::kCorrupt, gw, ".planes[", s, "] is not 6 accessor indices");
-    }
-    for (int p = 0; p < kNumHexPlanes; ++p) {
-      const auto [a, b] = kHexPlaneAxes[size_t(p)];
-      const size_t size = size_t(c.grid.channels) * size_t(c.grid.resolution(int(s), b)) * size_t(c.grid.resolution(int(s), a));
-      json holder = {{"plane", scale[size_t(p)]}};
-      ATEX_RETURN_IF_ERROR(ReadFloatArray(model, holder, "plane", size, StrCat(gw, ".planes[", s, "][", p, "]"), &field.planes[s][size_t(p)]));
-    }
-  }
-  const int feat = c.grid.feature_dim(), w = c.mlp_width;
-  field.trunk.resize(trunk->size());
-  for (size_t l = 0; l < trunk->size(); ++l) {
-    ATEX_RETURN_IF_ERROR(ReadLinear(model, (*trunk)[l], l == 0 ? feat : w, w, StrCat(where, ".trunk[", l, "]"), &field.trunk[l]));
-  }
-  for (int h = 0; h < kNumDeformHeads; ++h) {
-    if (!c.heads[h]) continue;
-    const json& layers = heads->at(gltf::kHeadNames[h]);
-    const std::string hw = StrCat(where, ".heads.", gltf::kHeadNames[h]);
-    if (!layers.is_array() || layers.size() != 2) return MakeError(StatusCode::kCorrupt, hw, " is not 2 layers");
-    ATEX_RETURN_IF_ERROR(ReadLinear(model, layers[0], w, w, hw + "[0]", &field.heads[h][0]));
-    ATEX_RETURN_IF_ERROR(ReadLinear(model, layers[1], w, c.head_outputs(h), hw + "[1]", &field.heads[h][1]));
-  }
-  ATEX_RETURN_IF_ERROR(CheckDeformationField(field));
-  return field;
-}
-
 // Replaces the base-derived parameters by the bit-exact raw ones when present.
 Status ReadRawParameters(const tinygltf::Model& model, const tinygltf::Primitive& primitive, Gaussians& g) {
   const size_t n = g.size();
@@ -538,7 +272,7 @@ const json* FindPath(const json& root, std::initializer_list<const char*> keys) 
 }
 
 StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, const GltfImportOptions& options) {
-  ATEX_ASSIGN_OR_RETURN(std::vector<SplatPrimitive> splats, FindSplatPrimitives(model, doc));
+  ATEX_ASSIGN_OR_RETURN(std::vector<gltf::SplatPrimitive> splats, gltf::FindSplatPrimitives(model, doc));
   if (splats.empty()) return MakeError(StatusCode::kUnsupported, "no KHR_gaussian_splatting primitive in the default scene");
   const json* atex = FindPath(doc, {"extras", "atex"});
   Asset asset;
@@ -585,12 +319,12 @@ StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, cons
     if (!deformation->is_object()) return MakeError(StatusCode::kCorrupt, gltf::kAtexDeformation, " is not an object");
     ATEX_RETURN_IF_ERROR(ReadRawParameters(model, primitive, asset.gaussians));
     if (auto f = deformation->find("field"); f != deformation->end()) {
-      ATEX_ASSIGN_OR_RETURN(DeformationField field, ReadField(model, *f));
+      ATEX_ASSIGN_OR_RETURN(DeformationField field, gltf::ReadField(model, *f));
       asset.deformation = std::move(field);
     }
   }
   if (textures != nullptr) {
-    ATEX_ASSIGN_OR_RETURN(TexturePool pool, ReadTextures(model, primitive, *textures, asset.gaussians.size()));
+    ATEX_ASSIGN_OR_RETURN(TexturePool pool, gltf::ReadTextures(model, primitive, *textures, asset.gaussians.size()));
     asset.textures = std::move(pool);
   }
   const json* metadata = FindPath(*atex, {"metadata"});

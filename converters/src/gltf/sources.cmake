@@ -7,6 +7,8 @@ list(APPEND ATEX_CONVERTER_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/gltf_container.cc
   ${CMAKE_CURRENT_LIST_DIR}/gltf_accessors.cc
   ${CMAKE_CURRENT_LIST_DIR}/gltf_import.cc
+  ${CMAKE_CURRENT_LIST_DIR}/gltf_import_extensions.cc
+  ${CMAKE_CURRENT_LIST_DIR}/gltf_import_scene.cc
   ${CMAKE_CURRENT_LIST_DIR}/meshopt_codec.cc
   ${CMAKE_CURRENT_LIST_DIR}/sh_rotation.cc
   ${CMAKE_CURRENT_LIST_DIR}/tinygltf_impl.cc)
