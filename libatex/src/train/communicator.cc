@@ -53,6 +53,14 @@ class Rendezvous {
  public:
   Rendezvous(int ranks, std::chrono::milliseconds timeout) : ranks_(ranks), timeout_(timeout), slots_(ranks) {}
 
+  void Abort(int rank, const std::string& why) {
+    std::lock_guard lock(mutex_);
+    if (!broken_.ok()) return;
+    broken_ = MakeError(StatusCode::kCancelled, "in-process communicator: rank ", rank, " stopped (", why,
+                        "); the group is unusable");
+    cv_.notify_all();
+  }
+
   Status Run(int rank, const Contribution& mine) {
     std::unique_lock lock(mutex_);
     if (!broken_.ok()) return broken_;
@@ -164,6 +172,7 @@ class InProcessCommunicator final : public Communicator {
     return group_->Run(rank_, {Op::kBroadcast, bytes, n, root});
   }
   Status Barrier() override { return group_->Run(rank_, {Op::kBarrier, nullptr, 0}); }
+  void Abort(const std::string& why) override { group_->Abort(rank_, why); }
 
  private:
   std::shared_ptr<Rendezvous> group_;

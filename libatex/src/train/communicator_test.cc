@@ -116,6 +116,18 @@ TEST(Communicator, InProcessMissingRankTimesOutInsteadOfHanging) {
   }
 }
 
+TEST(Communicator, AbortReleasesTheRanksThatWait) {
+  auto results = RunRanks(2, std::chrono::seconds(60), [&](int r, Communicator& comm) -> Status {
+    if (r == 1) {
+      comm.Abort("a failing step");
+      return Status::Ok();
+    }
+    return comm.Barrier();  // would wait a minute without the abort
+  });
+  EXPECT_EQ(results[0].code(), StatusCode::kCancelled) << results[0].ToString();
+  EXPECT_NE(results[0].message().find("a failing step"), std::string::npos) << results[0].ToString();
+}
+
 TEST(Communicator, InProcessGroupNeedsARank) {
   EXPECT_EQ(MakeInProcessGroup(0).status().code(), StatusCode::kInvalidArgument);
 }

@@ -263,6 +263,37 @@ TEST(DataParallel, ReplicasThatDriftApartFailLoudly) {
   }
 }
 
+// The CPU backend, except that step `step` fails (a device error on one rank).
+class FailAtStep final : public ForwardingBackend {
+ public:
+  explicit FailAtStep(int step) : step_(step) {}
+  StatusOr<StepResult> Step(const StepRequest& r, std::span<const TrainView> v) override {
+    if (steps_++ == step_) return MakeError(StatusCode::kNoDevice, "the device went away");
+    return ForwardingBackend::Step(r, v);
+  }
+
+ private:
+  int step_, steps_ = 0;
+};
+
+TEST(DataParallel, ARankThatFailsStopsTheOthersAtOnce) {
+  auto data = MovingBall();
+  ASSERT_NE(data, nullptr);
+  TrainerOptions options;
+  options.config = SmallConfig();
+  options.stages = kStage1;
+  const auto start = std::chrono::steady_clock::now();
+  auto results = TrainRanks(*data, options, 2, [](int rank) -> std::unique_ptr<Backend> {
+    if (rank == 1) return std::make_unique<FailAtStep>(3);
+    return MakeCpuBackend();
+  });
+  EXPECT_EQ(results[1].status().code(), StatusCode::kNoDevice) << results[1].status().ToString();
+  EXPECT_EQ(results[0].status().code(), StatusCode::kCancelled) << results[0].status().ToString();
+  EXPECT_NE(results[0].status().message().find("the device went away"), std::string::npos);
+  // Not the group's 120 s timeout (a hang would show as that).
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(100));
+}
+
 TEST(DataParallel, BatchNotAMultipleOfTheRanksIsRefusedByEveryRank) {
   auto data = MovingBall();
   ASSERT_NE(data, nullptr);

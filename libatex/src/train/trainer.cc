@@ -612,6 +612,10 @@ StatusOr<TrainSummary> Train(const Dataset& dataset, Backend& backend, const Tra
   // The backend sums gradients across the ranks while it trains for this loop.
   ATEX_RETURN_IF_ERROR(backend.SetCommunicator(options.communicator));
   StatusOr<TrainSummary> summary = loop.Run(initial);
+  if (!summary.ok() && options.communicator != nullptr && options.communicator->world_size() > 1) {
+    // The other ranks may wait for this one in a collective: let them fail now.
+    options.communicator->Abort(summary.status().ToString());
+  }
   const Status detached = backend.SetCommunicator(nullptr);
   if (summary.ok() && !detached.ok()) return detached;
   return summary;

@@ -43,6 +43,23 @@ class Communicator {
   virtual Status Broadcast(void* bytes, size_t n, int root) = 0;
   // Returns once every rank has called it.
   virtual Status Barrier() = 0;
+  // NOT collective: breaks the group after this rank failed, so that the other ranks' pending
+  // and later collectives fail at once instead of waiting for it (the trainer calls it when a
+  // run ends with an error). The group is unusable afterwards.
+  virtual void Abort(const std::string& why) {}
+
+  // Device memory (a GPU backend's gradients). A float buffer on this rank's device.
+  struct DeviceBuffer {
+    float* data = nullptr;
+    size_t count = 0;
+  };
+  // Sums every buffer of `buffers` across the ranks in place, as ONE grouped operation
+  // enqueued on `stream` (a cudaStream_t; the call returns once it is enqueued, the stream
+  // orders it after the backward pass that wrote the buffers and before the Adam update).
+  // Every rank passes the same list of counts. Host-only communicators: kUnsupported.
+  virtual Status AllReduceSumDevice(const std::vector<DeviceBuffer>& buffers, void* stream) {
+    return MakeError(StatusCode::kUnsupported, "the ", name(), " communicator reduces host memory only");
+  }
 };
 
 // One rank, no peers: every collective leaves the data as it is. The trainer's default.
