@@ -5,7 +5,8 @@
 #       batch 4 against 2 GPUs with batch 8;
 #   (b) quality: the same TOTAL views per step (batch 4) on 1 GPU and on 2 GPUs (2 each), both
 #       evaluated (atex eval --json), wall time and peak memory per GPU (nvidia-smi, sampled);
-#   (c) resume: the 2-GPU run's checkpoint at fine step 750 resumed on 1 GPU, evaluated.
+#   (c) resume: the 2-GPU run's checkpoint at fine step 750 resumed on 1 GPU, evaluated;
+# after the two-GPU gradient test (nccl_data_parallel_test).
 #
 #   bench/device/multi_gpu.sh OUT_DIR [FINE_STEPS=1500]
 #
@@ -14,10 +15,12 @@ source "$(dirname "$0")/common.sh"
 out=$1
 fine=${2:-1500}
 mkdir -p "$out"
-BUILD_TREE_OPTIONS="-DATEX_NCCL=ON -DATEX_TESTS=OFF -DATEX_BENCHMARKS=OFF" \
-  build_tree . "$BUILD" "$(nproc)" atex_cli > "$out/build.log" 2>&1 || { tail -20 "$out/build.log"; exit 1; }
-grep -i nccl "$out/build.log" || true
+BUILD_TREE_OPTIONS="-DATEX_NCCL=ON -DATEX_TESTS=ON -DATEX_BENCHMARKS=OFF" \
+  build_tree . "$BUILD" "$(nproc)" atex_cli nccl_data_parallel_test > "$out/build.log" 2>&1 ||
+  { tail -20 "$out/build.log"; exit 1; }
 nvidia-smi --query-gpu=index,name,driver_version --format=csv,noheader | tee "$out/gpu.txt"
+# First the two-GPU gradient test (kernels/tests/nccl_data_parallel_test.cc): seconds.
+"$(find "$BUILD" -name nccl_data_parallel_test -type f -perm -u+x | head -1)" 2>&1 | tee "$out/nccl_test.log" | tail -3
 common=(--data "$bb" --stage 1 --force --json --set stage1.coarse_iterations=200 --set eval_every=0
         --set checkpoint_every=0)
 
