@@ -150,7 +150,9 @@ StatusOr<std::unique_ptr<train::Communicator>> JoinLaunchedGroup(const train::La
 }
 
 Status RunThreadRanks(int ranks, const std::function<Status(int, train::Communicator&)>& body) {
-  ATEX_ASSIGN_OR_RETURN(auto group, train::MakeInProcessGroup(ranks));
+  // A rank waits for rank 0's evaluations and colour fits between collectives: a generous limit,
+  // which only a rank that never comes reaches.
+  ATEX_ASSIGN_OR_RETURN(auto group, train::MakeInProcessGroup(ranks, std::chrono::hours(2)));
   std::vector<Status> results(ranks);
   std::vector<std::thread> threads;
   for (int r = 0; r < ranks; ++r) threads.emplace_back([&, r] { results[r] = body(r, *group[r]); });
