@@ -22,6 +22,7 @@ StatusOr<SelectedBackend> SelectBackend(const std::string& name, const BackendCh
     cuda::CudaBackendOptions options;
     options.tf32 = choice.tf32;
     options.profile = choice.profile;
+    options.device = choice.device;
     ATEX_ASSIGN_OR_RETURN(selected.backend, cuda::MakeCudaBackend(options));
     selected.description = "cuda: " + cuda::DeviceDescription() + (choice.tf32 ? ", TF32 MLP" : ", FP32 MLP");
     return selected;

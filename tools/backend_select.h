@@ -19,6 +19,7 @@ struct SelectedBackend {
 struct BackendChoice {
   bool tf32 = true;      // CUDA: TF32 tensor cores for the deformation MLP
   bool profile = false;  // CUDA: per-stage timing (Backend::Profile)
+  int device = 0;        // CUDA: the device index (among the visible ones)
 };
 StatusOr<SelectedBackend> SelectBackend(const std::string& name, const BackendChoice& choice = {});
 

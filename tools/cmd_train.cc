@@ -13,13 +13,15 @@
 #include "backend_select.h"
 #include "cli.h"
 #include "cli_parse.h"
+#include "train_ranks.h"
 
 namespace {
 
 struct TrainArgs {
   std::string data, out, config_file, stage = "all", textures, backend = "auto", init, checkpoint_dir, resume,
-      metrics;
+      metrics, gpus;
   atex::cli::DatasetArgs dataset;
+  int ranks = 1;  // --ranks: CPU ranks as threads
   std::vector<std::string> overrides;
   int checkpoint_every = -1;
   long long seed = -1;
@@ -98,6 +100,40 @@ int RunTrain(const TrainArgs& a) {
   } else {
     return cli::Usage(cmd, "--stage must be 1, 2 or all");
   }
+  // Data parallelism (docs/multi_gpu.md): several GPUs make this process a launcher of one child
+  // per GPU; a launcher's environment (RANK, WORLD_SIZE, ...) makes it one rank of the group.
+  bool launched = false;
+  auto launch = train::ReadLaunchEnvironment(&launched);
+  if (!launch.ok()) return cli::Fail(cmd, launch.status());
+  launched = launched && launch->world_size > 1;
+  cli::BackendChoice choice;
+  if (!a.gpus.empty() && !launched) {
+    auto gpus = cli::ParseGpuList(a.gpus);
+    if (!gpus.ok()) return cli::Usage(cmd, gpus.status().message());
+    if (gpus->size() > 1) {
+      if (a.ranks > 1) return cli::Usage(cmd, "--gpus with several GPUs and --ranks exclude each other");
+      if (!cli::MultiGpuAvailable()) {
+        return cli::Fail(cmd, MakeError(StatusCode::kUnsupported, "--gpus ", a.gpus, ": this build has no NCCL ",
+                                        "(or no CUDA backend), so it trains on one GPU; rebuild with the CUDA "
+                                        "toolkit's NCCL (ATEX_NCCL=ON) or pass one GPU"));
+      }
+      auto code = cli::LaunchGpuRanks(*gpus);
+      if (!code.ok()) return cli::Fail(cmd, code.status());
+      return *code;
+    }
+    choice.device = gpus->front();
+  }
+  if (a.ranks > 1 && (a.backend != "cpu" || launched)) {
+    return cli::Usage(cmd, "--ranks runs ranks as threads of the CPU backend: it needs --backend cpu");
+  }
+  std::unique_ptr<train::Communicator> group_comm;
+  if (launched) {
+    if (a.backend == "cpu") return cli::Usage(cmd, "ranks of separate processes train on GPUs: not --backend cpu");
+    auto joined = cli::JoinLaunchedGroup(*launch, &choice.device);
+    if (!joined.ok()) return cli::Fail(cmd, joined.status());
+    group_comm = std::move(*joined);
+  }
+  const bool root = group_comm == nullptr || group_comm->rank() == 0;
   // The output is checked before hours of training, not after.
   if (Status s = cli::CheckOutput(a.out, a.force, {{a.init, a.data, a.config_file}, {".atex"}, "--out"}); !s.ok()) {
     return cli::Fail(cmd, s, a.out);
@@ -135,8 +171,8 @@ int RunTrain(const TrainArgs& a) {
   options.checkpoint_dir = a.checkpoint_dir;
   options.resume_dir = a.resume;
   options.metrics_csv = a.metrics;
+  options.communicator = group_comm.get();
 
-  cli::BackendChoice choice;
   choice.tf32 = !a.fp32;
   choice.profile = a.profile;
   options.time_limit_seconds = a.time_limit;
@@ -163,9 +199,25 @@ int RunTrain(const TrainArgs& a) {
     bar->Update(p.step, detail);
     return true;
   };
-  auto summary = train::Train(**dataset, *backend->backend, options, a.init.empty() ? nullptr : &initial);
+  const Asset* init = a.init.empty() ? nullptr : &initial;
+  StatusOr<train::TrainSummary> summary = MakeError(StatusCode::kInternal, "no rank trained");
+  if (a.ranks > 1) {
+    // Rank 0 trains on the selected backend; the others on CPU backends of their own.
+    const Status status = cli::RunThreadRanks(a.ranks, [&](int rank, train::Communicator& comm) -> Status {
+      train::TrainerOptions mine = options;
+      mine.communicator = &comm;
+      std::unique_ptr<train::Backend> own = rank == 0 ? nullptr : train::MakeCpuBackend();
+      auto trained = train::Train(**dataset, rank == 0 ? *backend->backend : *own, mine, init);
+      if (rank == 0) summary = std::move(trained);
+      return trained.ok() || rank == 0 ? Status::Ok() : trained.status();
+    });
+    if (!status.ok() && summary.ok()) summary = status;
+  } else {
+    summary = train::Train(**dataset, *backend->backend, options, init);
+  }
   if (bar) bar->Finish();
   if (!summary.ok()) return cli::Fail(cmd, summary.status());
+  if (!root) return cli::kExitOk;  // rank 0 writes the asset and the report
 
   WriteOptions write;
   const Status written = WriteAssetFile(a.out, summary->asset, write);
@@ -204,6 +256,11 @@ atex::cli::Runner SetupTrain(CLI::App& app) {
                  "Stage-2 texture mode: adaptive, uniform or none (with --stage 2: the same fine-tuning without "
                  "textures; with --stage all: stage 1 only)");
   app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
+  app.add_option("--gpus", a->gpus,
+                 "GPU indices, e.g. 0,1: one rank per GPU (data parallel, NCCL; docs/multi_gpu.md); the batch "
+                 "sizes are the global ones (multiples of the GPU count)");
+  atex::cli::AddInt(app, "--ranks", &a->ranks, 1, 64,
+                    "With --backend cpu: this many data-parallel ranks as threads (checks multi-GPU semantics)");
   app.add_option("--init", a->init, "Stage-1 asset to start stage 2 from");
   app.add_option("--checkpoint-dir", a->checkpoint_dir, "Write periodic checkpoints here (atomically)");
   atex::cli::AddInt(app, "--checkpoint-every", &a->checkpoint_every, 0, 100000000,

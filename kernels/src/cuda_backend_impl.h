@@ -90,6 +90,10 @@ class CudaBackend final : public Backend {
 
   uint64_t PeakMemoryBytes() const override { return peak_memory_; }
 
+  // Data parallelism: Step sums the gradients on the device through comm's
+  // AllReduceSumDevice (NCCL), the loss on the host (backend.h's contract).
+  Status SetCommunicator(train::Communicator* comm) override;
+
   nlohmann::json Profile() const override;
 
   // See TimeRender in cuda_backend.h.
@@ -134,6 +138,9 @@ class CudaBackend final : public Backend {
 
   Status FlagNonFiniteGrads(const train::StepRequest& request, bool textured);
 
+  // Sums the gradients of the step's groups across the ranks (one grouped device all-reduce).
+  Status ReduceGradients(const train::StepRequest& request, bool textured);
+
   Status ApplyAdam(const train::StepRequest& request, bool textured);
 
   Status CapOpacity(float cap);
@@ -153,6 +160,7 @@ class CudaBackend final : public Backend {
   static constexpr size_t kTargetCacheBytes = size_t{8} << 30;
 
   CudaBackendOptions options_;
+  train::Communicator* comm_ = nullptr;  // SetCommunicator; null or one rank: no reduction
   cudaStream_t stream_ = nullptr;
   cublasHandle_t cublas_ = nullptr;
   std::unique_ptr<DeformEngine> deform_;

@@ -20,7 +20,10 @@ StatusOr<train::StepResult> CudaBackend::Step(const train::StepRequest& request,
     return MakeError(StatusCode::kInvalidArgument, "step asks for deformation but the model has none");
   }
   const bool textured = request.use_textures && has_textures_;
-  const float batch = static_cast<float>(views.size());
+  // The global batch (backend.h, SetCommunicator): with R ranks every view's loss is divided by
+  // R × views.size(), so that the summed gradients are those of one GPU with all the views.
+  const int world = comm_ != nullptr ? comm_->world_size() : 1;
+  const float batch = static_cast<float>(views.size()) * static_cast<float>(world);
   ATEX_RETURN_IF_ERROR(ZeroGrads());
   ATEX_RETURN_IF_ERROR(scalars_.Zero(stream_));
   ATEX_RETURN_IF_ERROR(flag_.Zero(stream_));
@@ -87,6 +90,9 @@ StatusOr<train::StepResult> CudaBackend::Step(const train::StepRequest& request,
       ATEX_RETURN_IF_ERROR(Mark("deform_backward"));
     }
   }
+  // Summed across the ranks before the regularisers, which depend on the parameters alone and are
+  // added once on every rank.
+  if (world > 1) ATEX_RETURN_IF_ERROR(ReduceGradients(request, textured));
   if (request.apply_deformation &&
       (request.plane_tv > 0 || request.time_smoothness > 0 || request.time_l1 > 0)) {
     ATEX_RETURN_IF_ERROR(deform_->Regularizer(deform_layout_, grid_.value.data(),
@@ -101,6 +107,13 @@ StatusOr<train::StepResult> CudaBackend::Step(const train::StepRequest& request,
   ATEX_RETURN_IF_ERROR(scalars_.Download(&scalars, stream_));
   std::vector<int> flag;
   ATEX_RETURN_IF_ERROR(flag_.Download(&flag, stream_));
+  if (world > 1) {
+    // The loss over all ranks' views (a NaN on one rank reaches all of them). The flag needs no
+    // sum: it was raised on the summed gradients, the same on every rank.
+    double photometric = scalars[0];
+    ATEX_RETURN_IF_ERROR(comm_->AllReduceSum(&photometric, 1));
+    scalars[0] = static_cast<float>(photometric);
+  }
   result.photometric_loss = scalars[0];
   result.loss = scalars[0] + scalars[1];
   for (size_t k = 0; k < views.size(); ++k) {
@@ -215,6 +228,26 @@ Status CudaBackend::ZeroGrads() {
     ATEX_RETURN_IF_ERROR(mlp_.grad.Zero(stream_));
   }
   return Status::Ok();
+}
+
+Status CudaBackend::SetCommunicator(train::Communicator* comm) {
+  if (comm != nullptr && comm->world_size() > 1) {
+    // Refuse a host-only communicator now rather than at the first step.
+    ATEX_RETURN_IF_ERROR(comm->AllReduceSumDevice({}, stream_));
+  }
+  comm_ = comm;
+  return Status::Ok();
+}
+
+Status CudaBackend::ReduceGradients(const train::StepRequest& request, bool textured) {
+  std::vector<train::Communicator::DeviceBuffer> buffers;
+  for (Param* p : {&positions_, &rotations_, &log_scales_, &opacity_, &sh_}) buffers.push_back({p->grad.data(), p->grad.size()});
+  if (textured) buffers.push_back({texels_.grad.data(), texels_.grad.size()});
+  if (request.apply_deformation) {
+    buffers.push_back({grid_.grad.data(), grid_.grad.size()});
+    buffers.push_back({mlp_.grad.data(), mlp_.grad.size()});
+  }
+  return comm_->AllReduceSumDevice(buffers, stream_);
 }
 
 Status CudaBackend::FlagNonFiniteGrads(const train::StepRequest& request, bool textured) {

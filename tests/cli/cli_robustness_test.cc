@@ -134,6 +134,28 @@ TEST_F(CliRobustness, ResumeHonoursTheCheckpointsConfigAndDataset) {
   EXPECT_LE(report["steps"]["textures"].get<int>(), 6) << r.out;
 }
 
+TEST_F(CliRobustness, TrainWithSeveralRanks) {
+  ATEX_REQUIRE_DATA_FILE(npz, "dnerf_lego_tiny/tiny_dnerf_data.npz");
+  const std::string data = "--data '" + npz.string() + "' ";
+  // Two CPU ranks as threads (docs/multi_gpu.md): rank 0 writes the asset and the report.
+  const std::string out = Path("ranks.atex");
+  Result r = Run("train " + data + kTiny + " --ranks 2 --set stage1.batch_size=2 --set stage2.batch_size=2 --json "
+                 "--out '" + out + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(out));
+  EXPECT_GT(nlohmann::json::parse(r.out)["gaussians"].get<int>(), 0) << r.out;
+  // The batch must divide by the ranks, before training.
+  r = Run("train " + data + kTiny + " --ranks 2 --out '" + Path("odd.atex") + "'");
+  ExpectRefused(r, 1, "multiple of 2 ranks", "--ranks 2 with batch 1");
+  EXPECT_FALSE(fs::exists(Path("odd.atex")));
+  // Threads of ranks are CPU ranks; a GPU list must be GPU indices.
+  ExpectRefused(Run("train " + data + "--ranks 2 --backend auto --out '" + Path("a.atex") + "'"), 2, "--backend cpu",
+                "--ranks without --backend cpu");
+  ExpectRefused(Run("train " + data + "--gpus 0,x --out '" + Path("g.atex") + "'"), 2, "'x' is not a GPU index",
+                "--gpus 0,x");
+  ExpectRefused(Run("train " + data + "--gpus 1,1 --out '" + Path("g.atex") + "'"), 2, "listed twice", "--gpus 1,1");
+}
+
 TEST_F(CliRobustness, FitOptionValues) {
   const std::string in = CopyAsset("in.atex");
   const std::vector<std::pair<std::string, std::string>> cases = {

@@ -11,6 +11,9 @@
 #include "atex/metrics.h"
 #include "atex/render.h"
 #include "atex/train/backend.h"
+#include "atex/train/communicator.h"
+#include "data_parallel.h"
+#include "tensor_sums.h"
 
 namespace atex::train {
 
@@ -43,47 +46,6 @@ void ResetMoments(ModelState* state) {
 }
 
 namespace {
-
-void AddInto(std::vector<float>* acc, const std::vector<float>& g) {
-  for (size_t k = 0; k < g.size(); ++k) (*acc)[k] += g[k];
-}
-
-void AddInto(Gaussians* acc, const Gaussians& g) {
-  AddInto(&acc->positions, g.positions);
-  AddInto(&acc->rotations, g.rotations);
-  AddInto(&acc->log_scales, g.log_scales);
-  AddInto(&acc->opacity_logits, g.opacity_logits);
-  AddInto(&acc->sh, g.sh);
-}
-
-bool AllFinite(const std::vector<float>& v) {
-  for (float x : v) {
-    if (!std::isfinite(x)) return false;
-  }
-  return true;
-}
-
-bool AllFinite(const Gaussians& g) {
-  return AllFinite(g.positions) && AllFinite(g.rotations) && AllFinite(g.log_scales) &&
-         AllFinite(g.opacity_logits) && AllFinite(g.sh);
-}
-
-bool AllFinite(const DeformationField& f) {
-  for (const auto& scale : f.planes) {
-    for (const auto& plane : scale) {
-      if (!AllFinite(plane)) return false;
-    }
-  }
-  for (const auto& l : f.trunk) {
-    if (!AllFinite(l.weight) || !AllFinite(l.bias)) return false;
-  }
-  for (const auto& head : f.heads) {
-    for (const auto& l : head) {
-      if (!AllFinite(l.weight) || !AllFinite(l.bias)) return false;
-    }
-  }
-  return true;
-}
 
 // Gathers rows of `width` values: out[j] = in[source[j]].
 std::vector<float> GatherRows(const std::vector<float>& in, int width, const std::vector<uint32_t>& source,
@@ -143,14 +105,16 @@ class CpuBackend final : public Backend {
     }
     const bool textured = request.use_textures && state_.textures.has_value();
     const size_t n = state_.gaussians.size();
-    const float batch = static_cast<float>(views.size());
+    Communicator& comm = comm_ != nullptr ? *comm_ : single_rank_;
+    const int world = comm.world_size();
+    // The global batch: with R ranks of views.size() views each, every view's loss is divided by
+    // the batch of all ranks, so that the summed gradients are those of one rank with all views.
+    const float batch = static_cast<float>(views.size()) * static_cast<float>(world);
 
-    Gaussians grad;
-    grad.sh_degree = state_.gaussians.sh_degree;
-    grad.Resize(n);
-    std::vector<float> grad_texels(textured ? state_.textures->texels.size() : 0, 0.0f);
-    std::optional<DeformationField> grad_field;
-    if (request.apply_deformation) grad_field = ZerosLike(*state_.deformation);
+    // Each view's gradients apart, summed as a tree after the loop (TreeSum).
+    std::vector<Gaussians> view_grads;
+    std::vector<std::vector<float>> view_texels;
+    std::vector<DeformationField> view_fields;
 
     RenderSettings settings;
     settings.background = request.background;
@@ -159,6 +123,7 @@ class CpuBackend final : public Backend {
 
     StepResult result;
     double photometric = 0;
+    bool nonfinite_image = false;
     for (const TrainView& view : views) {
       const Camera& camera = *view.camera;
       const Image& target = *view.target;
@@ -189,10 +154,10 @@ class CpuBackend final : public Backend {
       // A NaN/Inf in the loss or dL/dimage (e.g. a corrupt target frame) is reported as a
       // non-finite step, like one in the parameter gradients, so that the loop rolls back;
       // RenderBackward would otherwise refuse the gradient with an error and end training.
+      // (With several ranks, the others still meet this rank in the reduction below.)
       if (!std::isfinite(loss) || !AllFinite(grad_image)) {
-        result.photometric_loss = result.loss = std::numeric_limits<double>::quiet_NaN();
-        result.finite = false;
-        return result;
+        nonfinite_image = true;
+        break;
       }
       double sse = 0;
       for (size_t k = 0; k < compared->size(); ++k) {
@@ -206,23 +171,60 @@ class CpuBackend final : public Backend {
       ATEX_RETURN_IF_ERROR(RenderBackward<float>(camera, *rendered_gaussians, textures, settings, out, grad_image.data(),
                                           nullptr, &rgrads));
       if (request.apply_deformation) {
+        Gaussians view_grad;
+        view_grad.sh_degree = state_.gaussians.sh_degree;
+        view_grad.Resize(n);
+        DeformationField view_field = ZerosLike(*state_.deformation);
         ATEX_RETURN_IF_ERROR(DeformBackward(*state_.deformation, state_.gaussians, camera.time, cache,
-                                            rgrads.gaussians, &*grad_field, &grad));
+                                            rgrads.gaussians, &view_field, &view_grad));
+        view_grads.push_back(std::move(view_grad));
+        view_fields.push_back(std::move(view_field));
       } else {
-        AddInto(&grad, rgrads.gaussians);
+        view_grads.push_back(std::move(rgrads.gaussians));
       }
-      if (textured) AddInto(&grad_texels, rgrads.texels);
+      if (textured) {
+        rgrads.texels.resize(state_.textures->texels.size(), 0.0f);
+        view_texels.push_back(std::move(rgrads.texels));
+      }
       AccumulateStats(request, camera, *rendered_gaussians, out, rgrads, batch, textured);
       for (size_t i = 0; i < n; ++i) result.visible += out.radius[i] > 0 ? 1 : 0;
     }
-    result.photometric_loss = photometric;
-    result.loss = photometric;
+    Gaussians grad;
+    grad.sh_degree = state_.gaussians.sh_degree;
+    grad.Resize(n);
+    std::vector<float> grad_texels(textured ? state_.textures->texels.size() : 0, 0.0f);
+    std::optional<DeformationField> grad_field;
+    if (request.apply_deformation) grad_field = ZerosLike(*state_.deformation);
+    if (!nonfinite_image) {
+      grad = TreeSum(view_grads, 0, view_grads.size());
+      if (textured) grad_texels = TreeSum(view_texels, 0, view_texels.size());
+      if (request.apply_deformation) grad_field = TreeSum(view_fields, 0, view_fields.size());
+    }
+    const bool finite_here = !nonfinite_image && std::isfinite(photometric) && AllFinite(grad) &&
+                             AllFinite(grad_texels) && (!grad_field || AllFinite(*grad_field));
+    // One collective for the scalars decides for every rank whether the step is applied.
+    double scalars[3] = {photometric, finite_here ? 0.0 : 1.0, static_cast<double>(result.visible)};
+    ATEX_RETURN_IF_ERROR(comm.AllReduceSum(scalars, 3));
+    result.visible = static_cast<size_t>(scalars[2]);
+    if (scalars[1] != 0) {
+      result.photometric_loss = result.loss = std::numeric_limits<double>::quiet_NaN();
+      result.finite = false;
+      return result;
+    }
+    result.photometric_loss = scalars[0];
+    result.loss = scalars[0];
+    ATEX_RETURN_IF_ERROR(AllReduceSum(comm, &grad));
+    ATEX_RETURN_IF_ERROR(comm.AllReduceSum(grad_texels.data(), grad_texels.size()));
+    if (grad_field) ATEX_RETURN_IF_ERROR(AllReduceSum(comm, &*grad_field));
+    // The regularisers depend on the parameters alone (the same on every rank): added once,
+    // after the sum over the ranks.
     if (request.apply_deformation &&
         (request.plane_tv > 0 || request.time_smoothness > 0 || request.time_l1 > 0)) {
       RegularizerWeights weights{static_cast<float>(request.plane_tv), static_cast<float>(request.time_smoothness),
                                  static_cast<float>(request.time_l1)};
       result.loss += DeformRegularizer(*state_.deformation, weights, &*grad_field);
     }
+    // (A sum of finite values can overflow.)
     result.finite = std::isfinite(result.loss) && AllFinite(grad) && AllFinite(grad_texels) &&
                     (!grad_field || AllFinite(*grad_field));
     if (!result.finite) return result;
@@ -232,6 +234,11 @@ class CpuBackend final : public Backend {
     last_grad_texels_ = std::move(grad_texels);
     last_grad_field_ = std::move(grad_field);
     return result;
+  }
+
+  Status SetCommunicator(Communicator* comm) override {
+    comm_ = comm;
+    return Status::Ok();
   }
 
   Status ReadGradients(ModelState* out) override {
@@ -482,6 +489,8 @@ class CpuBackend final : public Backend {
   }
 
   AdamSettings adam_;
+  Communicator* comm_ = nullptr;          // SetCommunicator; null: one rank
+  SingleRankCommunicator single_rank_;
   ModelState state_;
   TrainingStats stats_;
   Gaussians last_grad_;                           // gradients of the last Step (ReadGradients)

@@ -28,6 +28,7 @@ class ForwardingBackend : public Backend {
   Status AttachTextures(const TexturePool& l) override { return inner_->AttachTextures(l); }
   Status ResizeTextures(const TextureResize& r) override { return inner_->ResizeTextures(r); }
   StatusOr<Image> Render(const Camera& c, const RenderRequest& r) override { return inner_->Render(c, r); }
+  Status SetCommunicator(Communicator* c) override { return inner_->SetCommunicator(c); }
 
  protected:
   Backend& inner() { return *inner_; }

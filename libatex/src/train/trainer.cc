@@ -18,6 +18,7 @@
 #include "atex/train/checkpoint.h"
 #include "atex/train/config_check.h"
 #include "atex/train/schedule.h"
+#include "data_parallel.h"
 #include "stage1_init.h"
 #include "trained_asset.h"
 
@@ -50,7 +51,7 @@ const char* PhaseName(Phase p) {
 class Loop {
  public:
   Loop(const Dataset& dataset, Backend& backend, const TrainerOptions& options)
-      : data_(dataset), backend_(backend), options_(options), config_(options.config),
+      : data_(dataset), backend_(backend), options_(options), config_(options.config), dp_(options.communicator),
         schedule_(config_.seed, dataset.train_views().size()),
         time_schedule_(config_.seed, ViewTimes(dataset.train_views())) {}
 
@@ -60,7 +61,7 @@ class Loop {
     ATEX_RETURN_IF_ERROR(CrossCheckConfig(config_, data_, options_.stages, &summary_.warnings));
     for (const std::string& w : summary_.warnings) Event("warning: " + w);
     extent_ = CameraExtent(data_.train_views());
-    if (!options_.metrics_csv.empty()) {
+    if (!options_.metrics_csv.empty() && dp_.is_root()) {
       csv_.open(options_.metrics_csv, std::ios::out | std::ios::trunc);
       if (!csv_) return MakeError(StatusCode::kIoError, "cannot write ", options_.metrics_csv);
       csv_ << "phase,step,loss,psnr,gaussians,lr_position,seconds\n";
@@ -277,9 +278,9 @@ class Loop {
     const int batch = phase == Phase::kTextures ? config_.stage2.batch_size : config_.stage1.batch_size;
     const bool same_time = (phase == Phase::kFine && config_.stage1.same_time_batches) ||
                            (phase == Phase::kTextures && config_.stage2.same_time_batches);
-    if (batch < 1 || batch % options_.world_size != 0) {
-      return MakeError(StatusCode::kInvalidArgument, "batch size ", batch, " is not a positive multiple of ",
-                       options_.world_size, " ranks");
+    if (batch < 1 || batch % dp_.world_size() != 0) {
+      return MakeError(StatusCode::kInvalidArgument, PhaseName(phase), " batch size ", batch,
+                       " is not a positive multiple of ", dp_.world_size(), " ranks");
     }
     const auto start = Clock::now();
     const auto& train = data_.train_views();
@@ -312,8 +313,8 @@ class Loop {
       StepRequest request = MakeRequest(phase, step);
       request.accumulate_importance = step >= importance_from;
       const std::vector<size_t> picks =
-          same_time ? time_schedule_.Views(total_steps_, batch, options_.rank, options_.world_size)
-                    : schedule_.Views(total_steps_, batch, options_.rank, options_.world_size);
+          same_time ? time_schedule_.Views(total_steps_, batch, dp_.rank(), dp_.world_size())
+                    : schedule_.Views(total_steps_, batch, dp_.rank(), dp_.world_size());
       std::vector<std::shared_ptr<const Image>> images;
       std::vector<TrainView> views;
       for (size_t index : picks) {
@@ -361,13 +362,17 @@ class Loop {
         }
         loss_sum = psnr_sum = 0;
         logged = 0;
-        if (!Report(progress)) return Cancelled(phase, step + 1);
+        bool stop = !Report(progress);
+        ATEX_RETURN_IF_ERROR(dp_.AgreeWithRoot(&stop));  // rank 0's callback decides for all
+        if (stop) return Cancelled(phase, step + 1);
       }
       if (config_.checkpoint_every > 0 && !options_.checkpoint_dir.empty() &&
           (step + 1) % config_.checkpoint_every == 0 && !last) {
         ATEX_RETURN_IF_ERROR(SaveCheckpoint(phase, step + 1));
       }
-      if (options_.time_limit_seconds > 0 && Seconds(run_start_) > options_.time_limit_seconds && !last) {
+      bool out_of_time = options_.time_limit_seconds > 0 && Seconds(run_start_) > options_.time_limit_seconds && !last;
+      if (options_.time_limit_seconds > 0) ATEX_RETURN_IF_ERROR(dp_.AgreeWithRoot(&out_of_time));  // rank 0's clock
+      if (out_of_time) {
         summary_.stopped_by_time_limit = true;
         Event(StrCat("time limit of ", options_.time_limit_seconds, " s reached at ", PhaseName(phase), " step ",
                      step + 1, " of ", total, ": stopping early"));
@@ -377,12 +382,16 @@ class Loop {
         if (phase == Phase::kTextures) summary_.textures_seconds += seconds, summary_.texture_steps += step + 1 - first_step;
         return Status::Ok();
       }
-      if (config_.eval_every > 0 && (step + 1) % config_.eval_every == 0 && !last && !data_.test_views().empty()) {
-        ATEX_ASSIGN_OR_RETURN(EvalResult eval, Evaluate(data_, backend_, ProgressEvalViews(), EvalRequest(phase),
-                                                            {.dynamic_region = false}));
-        Event(StrCat(PhaseName(phase), " step ", step + 1, ": test PSNR ", eval.mean.psnr, " SSIM ", eval.mean.ssim));
+      if (config_.eval_every > 0 && (step + 1) % config_.eval_every == 0 && !last) {
+        ATEX_RETURN_IF_ERROR(dp_.CheckReplicasAgree(backend_, StrCat(PhaseName(phase), " step ", step + 1)));
+        if (dp_.is_root() && !data_.test_views().empty()) {  // a report only: rank 0 evaluates
+          ATEX_ASSIGN_OR_RETURN(EvalResult eval, Evaluate(data_, backend_, ProgressEvalViews(), EvalRequest(phase),
+                                                          {.dynamic_region = false}));
+          Event(StrCat(PhaseName(phase), " step ", step + 1, ": test PSNR ", eval.mean.psnr, " SSIM ", eval.mean.ssim));
+        }
       }
     }
+    ATEX_RETURN_IF_ERROR(dp_.CheckReplicasAgree(backend_, StrCat("the end of the ", PhaseName(phase), " phase")));
     const double seconds = Seconds(start);
     if (phase == Phase::kCoarse) summary_.coarse_seconds += seconds, summary_.coarse_steps += total - first_step;
     if (phase == Phase::kFine) summary_.fine_seconds += seconds, summary_.fine_steps += total - first_step;
@@ -400,7 +409,7 @@ class Loop {
         return Status::Ok();
       }
       TrainingStats stats;
-      ATEX_RETURN_IF_ERROR(backend_.ReadStats(kStatsTexture, &stats));
+      ATEX_RETURN_IF_ERROR(dp_.ReadStats(backend_, kStatsTexture, &stats));  // summed over the ranks
       ModelState layout;
       ATEX_RETURN_IF_ERROR(backend_.Save(&layout));
       const GrowthEvidence evidence = ComputeGrowthEvidence(stats.texture, config_.stage2.ablations);
@@ -426,7 +435,7 @@ class Loop {
     DensifyReport report;
     if (densify_here) {
       TrainingStats stats;
-      ATEX_RETURN_IF_ERROR(backend_.ReadStats(kStatsDensify, &stats));
+      ATEX_RETURN_IF_ERROR(dp_.ReadStats(backend_, kStatsDensify, &stats));  // summed (radii: max) over the ranks
       Gaussians canonical;
       ATEX_RETURN_IF_ERROR(backend_.ReadGaussians(&canonical));
       // Size pruning starts once the stage is past one opacity-reset interval (4DGaussians).
@@ -473,7 +482,16 @@ class Loop {
     if (!due) return Status::Ok();
     RenderRequest request = EvalRequest(phase);
     request.active_sh_degree = active_sh_degree;
-    ATEX_RETURN_IF_ERROR(colours_.Fit(data_, backend_, request, c));
+    // Rank 0 fits (the replicas are identical) and sends the corrections to the others.
+    nlohmann::json fitted;
+    if (dp_.is_root()) {
+      ATEX_RETURN_IF_ERROR(colours_.Fit(data_, backend_, request, c));
+      fitted = colours_.ToJson();
+    }
+    ATEX_RETURN_IF_ERROR(dp_.BroadcastJson(&fitted));
+    if (!dp_.is_root()) {
+      ATEX_ASSIGN_OR_RETURN(colours_, CameraColours::FromJson(fitted));
+    }
     Event(StrCat(PhaseName(phase), " step ", step + 1, ": camera colours fitted (", colours_.Summary(), ")"));
     return Status::Ok();
   }
@@ -498,7 +516,9 @@ class Loop {
     return r;
   }
 
+  // Rank 0 writes (the checkpoint holds the global model: nothing per rank).
   Status SaveCheckpoint(Phase phase, int step) {
+    if (!dp_.is_root()) return Status::Ok();
     ModelState state;
     ATEX_RETURN_IF_ERROR(backend_.Save(&state));
     nlohmann::json trainer = {{"phase", PhaseName(phase)}, {"step", step},          {"lr_scale", lr_scale_},
@@ -519,7 +539,9 @@ class Loop {
                      options_.checkpoint_dir.empty() ? "" : " (checkpoint written)");
   }
 
-  bool Report(const TrainProgress& p) { return options_.progress ? options_.progress(p) : true; }
+  // Rank 0 reports; the other ranks' callbacks are not called (their return value is rank 0's,
+  // AgreeWithRoot).
+  bool Report(const TrainProgress& p) { return options_.progress && dp_.is_root() ? options_.progress(p) : true; }
 
   void Event(const std::string& text) {
     summary_.events.push_back(text);
@@ -547,9 +569,9 @@ class Loop {
     }
     summary_.asset = AssetFromState(state, metadata_);
     TrainingStats stats;
-    ATEX_RETURN_IF_ERROR(backend_.ReadStats(kStatsImportance | (textured ? kStatsTexture : 0), &stats));
+    ATEX_RETURN_IF_ERROR(dp_.ReadStats(backend_, kStatsImportance | (textured ? kStatsTexture : 0), &stats));
     summary_.asset.stats = FitterStats(stats, state.gaussians.size(), textured, config_.stage2.ablations);
-    if (!data_.test_views().empty()) {
+    if (!data_.test_views().empty() && dp_.is_root()) {  // rank 0 evaluates (the other ranks' summaries: no test)
       const Phase last = textured ? Phase::kTextures : Phase::kFine;
       ATEX_ASSIGN_OR_RETURN(summary_.test, Evaluate(data_, backend_, data_.test_views(), EvalRequest(last),
                                                      {.dynamic_region = true}));
@@ -565,6 +587,7 @@ class Loop {
   Backend& backend_;
   const TrainerOptions& options_;
   TrainConfig config_;
+  DataParallel dp_;  // rank, world size and the collectives (one rank without a communicator)
   CameraSchedule schedule_;
   TimeBatchSchedule time_schedule_;
   std::ofstream csv_;
@@ -586,7 +609,16 @@ class Loop {
 StatusOr<TrainSummary> Train(const Dataset& dataset, Backend& backend, const TrainerOptions& options,
                              const Asset* initial) {
   Loop loop(dataset, backend, options);
-  return loop.Run(initial);
+  // The backend sums gradients across the ranks while it trains for this loop.
+  ATEX_RETURN_IF_ERROR(backend.SetCommunicator(options.communicator));
+  StatusOr<TrainSummary> summary = loop.Run(initial);
+  if (!summary.ok() && options.communicator != nullptr && options.communicator->world_size() > 1) {
+    // The other ranks may wait for this one in a collective: let them fail now.
+    options.communicator->Abort(summary.status().ToString());
+  }
+  const Status detached = backend.SetCommunicator(nullptr);
+  if (summary.ok() && !detached.ok()) return detached;
+  return summary;
 }
 
 }  // namespace atex::train

@@ -6,8 +6,9 @@
 // backward pass, applies one Adam update and accumulates per-Gaussian statistics.
 // The loop reads the statistics, decides on the host (densification, texture
 // growth) and sends the edits back, so every backend makes identical decisions.
-// With several GPUs, each rank runs Step on its own views; gradients and
-// statistics are summed across ranks by the backend before Adam / ReadStats.
+// With several ranks (data parallelism, docs/multi_gpu.md), each rank runs Step on
+// its own views; the backend sums the gradients across the ranks before Adam
+// (SetCommunicator), and the trainer sums the statistics it reads before deciding.
 #pragma once
 
 #include <array>
@@ -27,6 +28,7 @@
 #include "atex/render.h"  // kDefaultNearPlane
 #include "atex/status.h"
 #include "atex/train/colour_correction.h"
+#include "atex/train/communicator.h"
 
 namespace atex::train {
 
@@ -218,6 +220,22 @@ class Backend {
 
   // Renders [H][W][3] at the camera's time (unclamped; the request's background).
   virtual StatusOr<Image> Render(const Camera& camera, const RenderRequest& request) = 0;
+
+  // Data parallelism. With a communicator of world size R attached, every later Step is
+  // collective: the loss is normalised by the GLOBAL batch (views.size() × R; every rank
+  // passes the same number of views), the photometric gradients of all groups, the loss and
+  // the finiteness are summed across the ranks, and the deformation regularisers (which
+  // depend on the parameters alone) are added once after that sum, before the (then
+  // identical) Adam update, so that R ranks with B/R views each make the update of one rank
+  // with all B views. StepResult::view_psnr stays this rank's.
+  // Statistics stay per rank (the trainer sums what ReadStats returns). null detaches (one
+  // rank). The communicator must outlive its use. Backends without the support accept only
+  // null or a single rank: kUnsupported otherwise.
+  virtual Status SetCommunicator(Communicator* comm) {
+    if (comm == nullptr || comm->world_size() == 1) return Status::Ok();
+    return MakeError(StatusCode::kUnsupported, "backend ", name(), " does not train with ", comm->world_size(),
+                     " ranks (", comm->name(), " communicator)");
+  }
 
   // Peak device memory in bytes since creation (0 if not tracked).
   virtual uint64_t PeakMemoryBytes() const { return 0; }

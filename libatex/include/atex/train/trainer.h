@@ -19,6 +19,7 @@
 #include "atex/model.h"
 #include "atex/status.h"
 #include "atex/train/backend.h"
+#include "atex/train/communicator.h"
 #include "atex/train/config.h"
 #include "atex/train/densify.h"
 #include "atex/train/texture_growth.h"
@@ -47,7 +48,13 @@ struct TrainerOptions {
   std::string metrics_csv;     // one row per logged step (empty: none)
   int log_every = 10;          // progress/CSV interval in steps
   ProgressCallback progress;
-  int rank = 0, world_size = 1;  // data parallelism (the backend sums across ranks)
+  // Data parallelism (docs/multi_gpu.md): this rank's communicator, or null for one rank. With
+  // R ranks every rank calls Train with the same dataset, options and starting model; rank r
+  // trains on its share of each step's views (the batch sizes must be multiples of R), the
+  // backend sums the gradients and the loop sums the statistics, so all ranks make identical
+  // updates and edits. Only rank 0 reports progress, writes the CSV and checkpoints, and
+  // evaluates (the others' summaries have no test metrics); every rank returns the model.
+  Communicator* communicator = nullptr;
   // Stop training after this many seconds (0 = no limit): the current phase ends, later
   // phases are skipped, and the asset is written as usual with an event saying so.
   double time_limit_seconds = 0;

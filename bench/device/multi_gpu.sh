@@ -1,0 +1,107 @@
+#!/usr/bin/env bash
+# Data-parallel training on two GPUs (issue 25), Panoptic basketball stage 1, about 8 minutes
+# on 2×H100:
+#   (a) scaling: steps/s of the fine phase with the batch per GPU fixed (4 views): 1 GPU with
+#       batch 4 against 2 GPUs with batch 8;
+#   (b) quality: the same TOTAL views per step (batch 4) on 1 GPU and on 2 GPUs (2 each), both
+#       evaluated (atex eval --json), wall time and peak memory per GPU (nvidia-smi, sampled);
+#   (c) resume: the 2-GPU run's checkpoint at fine step 750 resumed on 1 GPU, evaluated;
+# after the two-GPU gradient test (nccl_data_parallel_test).
+#
+#   bench/device/multi_gpu.sh OUT_DIR [FINE_STEPS=1500]
+#
+# Results: OUT_DIR/multi_gpu.json (a summary) beside every run's report, log and evaluation.
+source "$(dirname "$0")/common.sh"
+out=$1
+fine=${2:-1500}
+# NVLink multicast stays off on the lent machines (KINDS.md): atex's ranks inherit this environment.
+export NCCL_NVLS_ENABLE=0
+mkdir -p "$out"
+BUILD_TREE_OPTIONS="-DATEX_NCCL=ON -DATEX_TESTS=ON -DATEX_BENCHMARKS=OFF" \
+  build_tree . "$BUILD" "$(nproc)" atex_cli nccl_data_parallel_test > "$out/build.log" 2>&1 ||
+  { tail -20 "$out/build.log"; exit 1; }
+nvidia-smi --query-gpu=index,name,driver_version --format=csv,noheader | tee "$out/gpu.txt"
+# First the two-GPU gradient test (kernels/tests/nccl_data_parallel_test.cc): seconds.
+"$(find "$BUILD" -name nccl_data_parallel_test -type f -perm -u+x | head -1)" 2>&1 | tee "$out/nccl_test.log" | tail -3
+common=(--data "$bb" --stage 1 --force --json --set stage1.coarse_iterations=200 --set eval_every=0
+        --set checkpoint_every=0)
+
+# Runs `atex train` with ARGS... as run NAME while sampling the GPUs' memory every 200 ms;
+# writes NAME.train.json, NAME.log, NAME.memory.csv and NAME.wall (seconds).
+run() {  # NAME ARGS...
+  local name=$1
+  shift
+  nvidia-smi --query-gpu=index,memory.used --format=csv,noheader,nounits -lms 200 > "$out/$name.memory.csv" &
+  local sampler=$!
+  local start end
+  start=$(date +%s.%N)
+  "$atex" train "${common[@]}" "$@" > "$out/$name.train.json" 2> "$out/$name.log" || {
+    kill "$sampler"
+    echo "run $name failed:"
+    tail -20 "$out/$name.log"
+    return 1
+  }
+  end=$(date +%s.%N)
+  kill "$sampler"
+  python3 -c "print($end - $start)" > "$out/$name.wall"
+}
+
+# (a) scaling: batch per GPU fixed at 4, 300 fine steps.
+run scale_1gpu --gpus 0 --out "$out/scale_1gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=4
+run scale_2gpu --gpus 0,1 --out "$out/scale_2gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=8
+
+# (b) quality: 4 views per step in total; the 2-GPU run writes a checkpoint at fine step 750 for (c).
+run quality_1gpu --gpus 0 --out "$out/quality_1gpu.atex" --set stage1.fine_iterations="$fine" \
+  --set stage1.batch_size=4
+run quality_2gpu --gpus 0,1 --out "$out/quality_2gpu.atex" --set stage1.fine_iterations="$fine" \
+  --set stage1.batch_size=4 --checkpoint-dir "$out/ckpt_2gpu" --checkpoint-every 750
+
+# (c) the 2-GPU checkpoint resumed on one GPU.
+common=(--data "$bb" --stage 1 --force --json)
+run resume_1gpu --gpus 0 --out "$out/resume_1gpu.atex" --resume "$out/ckpt_2gpu"
+
+for name in quality_1gpu quality_2gpu resume_1gpu; do
+  "$atex" eval "$out/$name.atex" --data "$bb" --json > "$out/$name.eval.json" 2> "$out/$name.eval.log"
+done
+
+python3 - "$out" <<'PY' | tee "$out/multi_gpu.json"
+import collections, json, os, sys
+out = sys.argv[1]
+def load(name, kind):
+    path = os.path.join(out, f"{name}.{kind}.json")
+    return json.load(open(path)) if os.path.exists(path) else None
+def peak_mib(name):
+    peak = collections.defaultdict(int)
+    for line in open(os.path.join(out, f"{name}.memory.csv")):
+        parts = [p.strip() for p in line.split(",")]
+        if len(parts) == 2 and parts[1].isdigit():
+            peak[int(parts[0])] = max(peak[int(parts[0])], int(parts[1]))
+    return dict(peak)
+rows = {}
+for name in ["scale_1gpu", "scale_2gpu", "quality_1gpu", "quality_2gpu", "resume_1gpu"]:
+    train = load(name, "train")
+    row = {"wall_s": float(open(os.path.join(out, f"{name}.wall")).read()), "peak_mib_per_gpu": peak_mib(name)}
+    if train:
+        seconds = train.get("seconds", {})
+        steps = train.get("steps", {})
+        row["fine_seconds"] = seconds.get("fine") if isinstance(seconds, dict) else None
+        row["fine_steps"] = steps.get("fine") if isinstance(steps, dict) else None
+        if row["fine_seconds"] and row["fine_steps"]:
+            row["fine_steps_per_s"] = row["fine_steps"] / row["fine_seconds"]
+        row["gaussians"] = train.get("gaussians")
+    ev = load(name, "eval")
+    if ev:
+        row["test_psnr"] = ev.get("mean", {}).get("psnr")
+    rows[name] = row
+summary = {"runs": rows}
+a, b = rows["scale_1gpu"].get("fine_steps_per_s"), rows["scale_2gpu"].get("fine_steps_per_s")
+if a and b:
+    summary["scaling_2gpu_over_1gpu"] = b / a
+q1, q2 = rows["quality_1gpu"], rows["quality_2gpu"]
+summary["quality_wall_ratio_2gpu_over_1gpu"] = q2["wall_s"] / q1["wall_s"]
+if q1.get("test_psnr") and q2.get("test_psnr"):
+    summary["quality_psnr_2gpu_minus_1gpu"] = q2["test_psnr"] - q1["test_psnr"]
+if q2.get("test_psnr") and rows["resume_1gpu"].get("test_psnr"):
+    summary["resume_psnr_minus_straight_2gpu"] = rows["resume_1gpu"]["test_psnr"] - q2["test_psnr"]
+print(json.dumps(summary, indent=1))
+PY
