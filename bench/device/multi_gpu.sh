@@ -9,6 +9,8 @@
 # after the two-GPU gradient test (nccl_data_parallel_test).
 #
 #   bench/device/multi_gpu.sh OUT_DIR [FINE_STEPS=1500]
+# MULTI_GPU_ARGS adds train options to every run (e.g. "--set stage1.init_method=auto" to skip the
+# stereo's seconds); the 2-GPU quality run writes its checkpoint at half of FINE_STEPS.
 #
 # Results: OUT_DIR/multi_gpu.json (a summary) beside every run's report, log and evaluation.
 source "$(dirname "$0")/common.sh"
@@ -23,8 +25,10 @@ BUILD_TREE_OPTIONS="-DATEX_NCCL=ON -DATEX_TESTS=ON -DATEX_BENCHMARKS=OFF" \
 nvidia-smi --query-gpu=index,name,driver_version --format=csv,noheader | tee "$out/gpu.txt"
 # First the two-GPU gradient test (kernels/tests/nccl_data_parallel_test.cc): seconds.
 "$(find "$BUILD" -name nccl_data_parallel_test -type f -perm -u+x | head -1)" 2>&1 | tee "$out/nccl_test.log" | tail -3
+# shellcheck disable=SC2206  # MULTI_GPU_ARGS is words
+extra=(${MULTI_GPU_ARGS:-})
 common=(--data "$bb" --stage 1 --force --json --set stage1.coarse_iterations=200 --set eval_every=0
-        --set checkpoint_every=0)
+        --set checkpoint_every=0 "${extra[@]}")
 
 # Runs `atex train` with ARGS... as run NAME while sampling the GPUs' memory every 200 ms;
 # writes NAME.train.json, NAME.log, NAME.memory.csv and NAME.wall (seconds).
@@ -50,14 +54,14 @@ run() {  # NAME ARGS...
 run scale_1gpu --gpus 0 --out "$out/scale_1gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=4
 run scale_2gpu --gpus 0,1 --out "$out/scale_2gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=8
 
-# (b) quality: 4 views per step in total; the 2-GPU run writes a checkpoint at fine step 750 for (c).
+# (b) quality: 4 views per step in total; the 2-GPU run writes a checkpoint half-way for (c).
 run quality_1gpu --gpus 0 --out "$out/quality_1gpu.atex" --set stage1.fine_iterations="$fine" \
   --set stage1.batch_size=4
 run quality_2gpu --gpus 0,1 --out "$out/quality_2gpu.atex" --set stage1.fine_iterations="$fine" \
-  --set stage1.batch_size=4 --checkpoint-dir "$out/ckpt_2gpu" --checkpoint-every 750
+  --set stage1.batch_size=4 --checkpoint-dir "$out/ckpt_2gpu" --checkpoint-every $((fine / 2))
 
 # (c) the 2-GPU checkpoint resumed on one GPU.
-common=(--data "$bb" --stage 1 --force --json)
+common=(--data "$bb" --stage 1 --force --json)  # the checkpoint holds the configuration
 run resume_1gpu --gpus 0 --out "$out/resume_1gpu.atex" --resume "$out/ckpt_2gpu"
 
 for name in quality_1gpu quality_2gpu resume_1gpu; do
