@@ -4,13 +4,19 @@
 // exact size and intrinsics) is compared with libatex's reference render of the same camera
 // and time (`atex render --time`, written by view_page.sh):
 //   - not blank: at least 2% of the pixels differ from the background;
-//   - the splats land where ours do: foreground IoU >= 0.85 (foreground: a pixel more than
-//     0.1 from the background in some channel). The mask test is what catches a wrong
-//     projection, a mirrored or upside-down world or a wrong time; IoU of the upside-down
-//     picture must be clearly lower, so the check can tell;
-//   - PSNR >= 26 dB against our render. The page shows an approximation of the asset: each
-//     texture is replaced by its average and the motion is interpolated between keyframes,
-//     8-bit blending; see view_page.sh for the figures this threshold leaves room under.
+//   - the splats land where ours do: foreground IoU >= 0.95 (foreground: a pixel more than
+//     25/255 from the background in some channel). The mask test is what catches a wrong
+//     projection, a mirrored or upside-down world or a wrong time; the IoU of the upside-down
+//     picture must be clearly lower, so that the check can tell;
+//   - PSNR >= 35 dB against our render: issue 21's target for players showing our untextured
+//     content. The page approximates the asset (textures replaced by their average, motion
+//     interpolated between keyframes, 8-bit blending, no early stop at transmittance 1e-4);
+//     on the lego sample (220 of its 91,490 Gaussians have textures larger than 1x1) it
+//     measured 48.4 / 42.6 / 47.9 dB at the three times and IoU 0.993-0.995 (2026-11-25,
+//     Debian Chromium 156, SwiftShader), so the thresholds leave room for other Chromium
+//     builds; a wrong convention falls below (the low-pass filter at 0.1 instead of 0.3
+//     pixels^2 measured 33.0-34.3 dB).
+//   - as a user opens it: the page plays by itself, and a drag turns the view.
 // Side-by-side pictures (page left, libatex right) are written as view_t*_page_vs_atex.png.
 // Usage: node view_page.mjs DIR  (DIR holds view.html, view.json and reference_*.png)
 import fs from 'node:fs';
@@ -122,11 +128,44 @@ try {
       delete stats.sideBySidePng;
       console.log(`${name}: ${JSON.stringify(stats)}`);
       check(stats.foreground >= 0.02, `${name}: the picture is not blank (${(100 * stats.foreground).toFixed(1)}% foreground)`);
-      check(stats.iou >= 0.85, `${name}: foreground IoU ${stats.iou.toFixed(3)} >= 0.85 against atex render`);
+      check(stats.iou >= 0.95, `${name}: foreground IoU ${stats.iou.toFixed(3)} >= 0.95 against atex render`);
       check(stats.iouUpsideDown < stats.iou - 0.15, `${name}: the upside-down picture matches clearly worse (IoU ${stats.iouUpsideDown.toFixed(3)})`);
-      check(stats.psnr >= 26, `${name}: PSNR ${stats.psnr.toFixed(2)} dB >= 26 dB against atex render`);
+      check(stats.psnr >= 35, `${name}: PSNR ${stats.psnr.toFixed(2)} dB >= 35 dB against atex render`);
     }
   }
+  await page.close();
+
+  // As a user opens it: the page plays by itself, and a drag turns the view.
+  const live = await context.newPage();
+  live.on('pageerror', (e) => errors.push(e.message));
+  await live.setViewportSize({ width: 480, height: 320 });
+  await live.goto(`file://${path.join(dir, 'view.html')}`, { timeout: 120000 });
+  await live.waitForFunction(() => window.atexView !== undefined, null, { timeout: 120000 });
+  await live.evaluate(() => window.atexView.ready);
+  const clock = () => live.evaluate(() => document.getElementById('time').value);
+  const picture = () => live.evaluate(() => {
+    const c = window.atexView.canvas, g = new OffscreenCanvas(c.width, c.height).getContext('2d');
+    g.drawImage(c, 0, 0);
+    const d = g.getImageData(0, 0, c.width, c.height).data;
+    let lit = 0;
+    for (let i = 0; i < d.length; i += 4) lit += Math.max(d[i], d[i + 1], d[i + 2]) > 25 ? 1 : 0;
+    return { pixels: Array.from(d.subarray(0, d.length).filter((_, i) => i % 4 === 0)), lit: lit / (c.width * c.height) };
+  });
+  const first = await clock();
+  await live.waitForTimeout(1500);
+  const second = await clock();
+  check(first !== second, `the page plays on its own (slider ${first} -> ${second})`);
+  await live.click('#play');  // pause, so that only the drag changes the picture
+  const before = await picture();
+  await live.mouse.move(240, 160);
+  await live.mouse.down();
+  await live.mouse.move(330, 160, { steps: 5 });
+  await live.mouse.up();
+  await live.waitForTimeout(500);
+  const after = await picture();
+  const changed = after.pixels.reduce((n, v, i) => n + (Math.abs(v - before.pixels[i]) > 25 ? 1 : 0), 0) / after.pixels.length;
+  check(changed > 0.01 && after.lit > 0.01, `a drag turns the view (${(100 * changed).toFixed(1)}% of pixels changed, ${(100 * after.lit).toFixed(1)}% lit)`);
+  await live.close();
   check(errors.length === 0, `no page errors (${errors.slice(0, 3).join(' | ')})`);
   check(outside.length === 0, `no request left the file (${outside.slice(0, 3).join(', ')})`);
 } finally {
