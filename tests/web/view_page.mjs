@@ -1,7 +1,7 @@
 // The page of `atex view` in headless Debian Chromium (software WebGL2 through SwiftShader),
 // opened straight from disk (file://, no server), every request outside file:/data: refused.
 // At each time given, the page's picture from its opening camera (#fixed=1: the camera's
-// exact size and intrinsics) is compared with libatex's reference render of the same camera
+// size and intrinsics, scaled by scale.txt) is compared with libatex's reference render of the same camera
 // and time (`atex render --time`, written by view_page.sh):
 //   - not blank: at least 2% of the pixels differ from the background;
 //   - the splats land where ours do: foreground IoU >= 0.95 (foreground: a pixel more than
@@ -27,6 +27,7 @@ import { check, finish, missing } from './common.mjs';
 const dir = path.resolve(process.argv[2] || '.');
 const summary = JSON.parse(fs.readFileSync(path.join(dir, 'view.json'), 'utf8'));
 const references = JSON.parse(fs.readFileSync(path.join(dir, 'references.json'), 'utf8'));
+const scale = Number(fs.readFileSync(path.join(dir, 'scale.txt'), 'utf8'));
 const chromiumPath = process.env.ATEX_CHROMIUM || '/usr/bin/chromium';
 if (!fs.existsSync(chromiumPath)) missing(`${chromiumPath} is missing (apt-get install chromium)`);
 let chromium;
@@ -106,7 +107,7 @@ try {
   page.on('pageerror', (e) => errors.push(e.message));
   page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
   const t0 = Date.now();
-  await page.goto(`file://${path.join(dir, 'view.html')}#fixed=1&t=${references[0].time}`, { timeout: 120000 });
+  await page.goto(`file://${path.join(dir, 'view.html')}#fixed=1&scale=${scale}&t=${references[0].time}`, { timeout: 120000 });
   let info;
   try {
     await page.waitForFunction(() => window.atexView !== undefined, null, { timeout: 120000 });

@@ -14,11 +14,15 @@ mkdir -p "$out"
 sample="$source_dir/samples/lego_adaptive_2MiB.atex"
 "$atex" view "$sample" -o "$out/view.html" --force --json > "$out/view.json" 2> "$out/view.log"
 # The opening camera and the time range, from the summary.
-read -r size intrinsics w2c t0 t1 < <(python3 - "$out/view.json" <<'PY'
+# Compared at half the camera's size (the page's #scale=0.5: size and intrinsics halved) to
+# keep software WebGL quick.
+scale=0.5
+read -r size intrinsics w2c t0 t1 < <(python3 - "$out/view.json" "$scale" <<'PY'
 import json, sys
 d = json.load(open(sys.argv[1]))
 c = d["camera"]
-print(f'{c["width"]}x{c["height"]}', ",".join(str(c[k]) for k in ("fx", "fy", "cx", "cy")),
+s = float(sys.argv[2])
+print(f'{round(c["width"] * s)}x{round(c["height"] * s)}', ",".join(str(c[k] * s) for k in ("fx", "fy", "cx", "cy")),
       ",".join(repr(v) for v in c["world_to_camera"]), d["times"][0], d["times"][-1])
 PY
 )
@@ -33,5 +37,6 @@ for t in "$t0" "$mid" "$t1"; do
   refs="$refs{\"time\": $t, \"png\": \"$png\"},"
 done
 echo "${refs%,}]" > "$out/references.json"
+echo "$scale" > "$out/scale.txt"
 echo "atex view: $(wc -c < "$out/view.html") bytes, $frames keyframes; references at $t0, $mid, $t1"
 exec bash "$here/run_node.sh" "$here/view_page.mjs" "$out"
