@@ -32,7 +32,7 @@ StatusOr<ViewPayload> BakeKeyframes(const Asset& asset, const std::vector<uint32
 // The world direction of an up axis, e.g. (0, 0, 1) for kPosZ.
 std::array<double, 3> ViewUpVector(UpAxis up);
 
-// Per axis the 1st and 99th percentile of the positions of the Gaussians with opacity
+// Per axis the 2nd and 98th percentile of the positions of the Gaussians with opacity
 // >= 0.2 (every Gaussian when none is): the box the opening camera frames.
 void RobustBox(const Gaussians& gaussians, std::array<double, 3>* lo, std::array<double, 3>* hi);
 

@@ -50,7 +50,7 @@ std::array<double, 3> ViewUpVector(UpAxis up) {
   return {0, -1, 0};
 }
 
-// The robust box of view.h's DefaultViewCamera: per axis the 1st and 99th percentile of
+// The robust box of view.h's DefaultViewCamera: per axis the 2nd and 98th percentile of
 // the positions of Gaussians with opacity >= 0.2 (every Gaussian when none is).
 void RobustBox(const Gaussians& g, std::array<double, 3>* lo, std::array<double, 3>* hi) {
   std::vector<size_t> chosen;

@@ -107,7 +107,7 @@ struct ViewPayload {
 int DefaultViewFrames(const Asset& asset);
 
 // A camera of `width` x `height` pixels, 50 degrees vertical field of view, looking at the
-// centre of the Gaussians' robust box (1st..99th percentile per axis of the Gaussians with
+// centre of the Gaussians' robust box (2nd..98th percentile per axis of the Gaussians with
 // opacity >= 0.2) from 20 degrees above the horizon, `up` up, far enough back that the
 // box's bounding sphere fits. *target (when not null) gets the box centre.
 Camera DefaultViewCamera(const Gaussians& gaussians, UpAxis up, int width, int height,
