@@ -103,10 +103,11 @@ atex::cli::Runner SetupView(CLI::App& app) {
   app.add_option("-o,--out", a->output, "Output page (.html)")->required();
   app.add_option("--frames", a->frames,
                  "Keyframes baked over the time range (default: 2 x (time nodes of the deformation grid - 1) + 1, "
-                 "2..120); fewer when the page would exceed --max-mib")
+                 "2..120; at most 256); fewer when the page would exceed --max-mib")
       ->check(CLI::Range(2, atex::kViewMaxFrames));
   app.add_option("--max-splats", a->max_splats,
-                 "Keep at most this many Gaussians, those with the largest opacity x volume (default: all)")
+                 "Keep at most this many Gaussians, those with the largest opacity x volume (default: all; the page holds "
+                 "at most 4,194,304)")
       ->check(CLI::Range(1LL, std::numeric_limits<long long>::max()));
   atex::cli::AddReal(app, "--max-mib", &a->max_mib, 0.01, 1e6, "Cap on the page's size in MiB (keyframes are dropped to fit)");
   app.add_option("--data", a->data, "Dataset whose camera (--view) the page opens with");

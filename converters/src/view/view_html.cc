@@ -169,6 +169,10 @@ StatusOr<std::string> EncodeViewHtml(const Asset& asset, const ViewOptions& opti
 
   const std::vector<uint32_t> kept = view::KeptGaussians(asset.gaussians, options.max_splats);
   r.kept = kept.size();
+  if (kept.size() > kViewMaxSplats) {
+    return MakeError(StatusCode::kLimitExceeded, "view: ", kept.size(), " Gaussians are more than the page can hold (",
+                     kViewMaxSplats, ", WebGL2's guaranteed texture size); keep fewer (max_splats)");
+  }
   if (kept.size() < asset.gaussians.size()) {
     r.notes.push_back(StrCat("kept the ", kept.size(), " of ", asset.gaussians.size(),
                              " Gaussians with the largest opacity x volume"));

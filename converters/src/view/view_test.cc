@@ -217,6 +217,10 @@ TEST(View, SizeCapDropsKeyframesThenRefuses) {
   auto refused = EncodeViewHtml(asset, options);
   ASSERT_FALSE(refused.ok());
   EXPECT_EQ(refused.status().code(), StatusCode::kBudgetTooSmall);
+  // More keyframes than WebGL2 guarantees array-texture layers.
+  ViewOptions too_many;
+  too_many.frames = kViewMaxFrames + 1;
+  EXPECT_EQ(EncodeViewHtml(asset, too_many).status().code(), StatusCode::kInvalidArgument);
 }
 
 TEST(View, DefaultCameraIsUprightAndLooksAtTheScene) {

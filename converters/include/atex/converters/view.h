@@ -41,7 +41,10 @@
 
 namespace atex {
 
-inline constexpr int kViewMaxFrames = 1000;
+// WebGL2's guaranteed minimums bound the page: 256 layers of a 2D-array texture (one per
+// keyframe) and 2048 x 2048 texels per layer (one per Gaussian).
+inline constexpr int kViewMaxFrames = 256;
+inline constexpr size_t kViewMaxSplats = size_t{2048} * 2048;
 inline constexpr uint64_t kViewDefaultMaxBytes = uint64_t{64} << 20;  // the HTML file
 
 struct ViewOptions {
@@ -115,6 +118,7 @@ Camera DefaultViewCamera(const Gaussians& gaussians, UpAxis up, int width, int h
 
 // Bakes and builds the page. Errors: kInvalidArgument (invalid or empty asset, frames
 // outside 0..kViewMaxFrames, a camera without positive size and focal lengths),
+// kLimitExceeded (more than kViewMaxSplats Gaussians kept: set max_splats),
 // kBudgetTooSmall (max_bytes below the template plus two keyframes, or one for a static
 // asset), kCancelled, and the deformation's own errors.
 StatusOr<std::string> EncodeViewHtml(const Asset& asset, const ViewOptions& options = {},
