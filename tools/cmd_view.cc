@@ -21,7 +21,7 @@ struct ViewArgs {
   int frames = 0;
   long long max_splats = 0;
   double max_mib = double(atex::kViewDefaultMaxBytes) / (1 << 20);
-  bool json = false, force = false;
+  bool json = false, force = false, no_compress = false;
 };
 
 // The opening camera: a dataset's (--data, --view), an explicit one (--size ...), or none.
@@ -61,6 +61,7 @@ int RunView(const ViewArgs& a) {
   ViewOptions options;
   options.frames = a.frames;
   options.max_splats = size_t(a.max_splats);
+  options.compress = !a.no_compress;
   options.max_bytes = uint64_t(a.max_mib * double(1 << 20));
   options.title = a.title.empty() ? std::filesystem::path(a.input).filename().string() : a.title;
   if (!a.up.empty()) {
@@ -117,6 +118,9 @@ atex::cli::Runner SetupView(CLI::App& app) {
   atex::cli::AddReals(app, "--world-to-camera", &a->world_to_camera, 16, "16 values, row-major, OpenCV axes");
   app.add_option("--up", a->up, "World up axis (default: metadata.up; older files: from metadata.axes)")
       ->check(CLI::IsMember({"+x", "-x", "+y", "-y", "+z", "-z"}));
+  app.add_flag("--no-compress", a->no_compress,
+               "Plain base64 arrays, for browsers without DecompressionStream (before Chrome 80, Firefox 113, "
+               "Safari 16.4); about 3x larger");
   app.add_option("--title", a->title, "Page title (default: the asset's file name)");
   atex::cli::AddDatasetOptions(app, &a->dataset);
   atex::cli::AddForceFlag(app, &a->force);

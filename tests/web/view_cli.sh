@@ -33,6 +33,14 @@ grep -q '<title>lego_adaptive_2MiB.atex</title>' "$work/a.html" || fail "the tit
 if grep -Eq '(src|href)="(https?:)?//' "$work/a.html"; then fail "the page refers to the network"; fi
 ok "the summary matches the page (5000 Gaussians, 3 keyframes, +z up, no network references)"
 
+# --no-compress: plain base64 arrays, larger, the same Gaussians.
+"$atex" view "$lego" -o "$work/p.html" --frames 3 --max-splats 5000 --no-compress --json > "$work/p.json" 2> /dev/null
+grep -q '"encoding":"raw"' "$work/p.html" || fail "--no-compress: no raw arrays"
+grep -q '"encoding":"delta-planes-deflate"' "$work/a.html" || fail "the default page is not compressed"
+[ "$(wc -c < "$work/p.html")" -gt "$(wc -c < "$work/a.html")" ] || fail "--no-compress is not larger"
+[ "$(field "$work/p.json" 'd["payload_bytes"]')" = "$(field "$work/a.json" 'd["payload_bytes"]')" ] || fail "payload differs"
+ok "--no-compress writes plain arrays ($(wc -c < "$work/p.html") vs $(wc -c < "$work/a.html") bytes)"
+
 # --up turns the opening camera: the camera's up (-row 1 of world_to_camera) follows it.
 "$atex" view "$sample" -o "$work/y.html" --up +y --json > "$work/y.json" 2> /dev/null
 [ "$(field "$work/y.json" 'round(-d["camera"]["world_to_camera"][5], 3)')" = 0.94 ] || fail "--up +y: $(cat "$work/y.json")"

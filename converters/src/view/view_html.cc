@@ -11,6 +11,7 @@
 #include "atex/render.h"
 #include "splatv/half.h"
 #include "view/view_bake.h"
+#include "view/view_codec.h"
 #include "view/view_template.h"
 
 namespace atex {
@@ -68,9 +69,22 @@ StatusOr<std::vector<uint8_t>> FromBase64(std::string_view text, std::string_vie
 }
 
 template <typename T>
-nlohmann::json ArrayJson(const std::vector<T>& values, std::string_view type, int components, int frames) {
-  return {{"type", type}, {"components", components}, {"frames", frames},
-          {"data", Base64(reinterpret_cast<const uint8_t*>(values.data()), values.size() * sizeof(T))}};
+StatusOr<nlohmann::json> ArrayJson(const std::vector<T>& values, std::string_view type, int components, int frames,
+                                   bool compress, uint64_t* stored_bytes) {
+  const auto* bytes = reinterpret_cast<const uint8_t*>(values.data());
+  nlohmann::json a = {{"type", type}, {"components", components}, {"frames", frames}};
+  if (compress) {
+    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> packed,
+                          view::CompressArray(bytes, sizeof(T), values.size() / size_t(frames), size_t(frames)));
+    a["encoding"] = view::kCompressedEncoding;
+    a["data"] = Base64(packed.data(), packed.size());
+    *stored_bytes += packed.size();
+  } else {
+    a["encoding"] = "raw";
+    a["data"] = Base64(bytes, values.size() * sizeof(T));
+    *stored_bytes += values.size() * sizeof(T);
+  }
+  return a;
 }
 
 // JSON inside <script>: no "</script" can appear once every '<' is escaped.
@@ -140,6 +154,7 @@ nlohmann::json ViewReport::ToJson() const {
           {"times", times},
           {"dynamic", dynamic},
           {"payload_bytes", payload_bytes},
+          {"stored_bytes", stored_bytes},
           {"bytes", html_bytes},
           {"up", up},
           {"camera", CameraJson(camera)},
@@ -184,7 +199,11 @@ StatusOr<std::string> EncodeViewHtml(const Asset& asset, const ViewOptions& opti
   r.frames_requested = moving ? requested : 0;
   const view::Dynamic dyn = view::DynamicArrays(asset);
   const uint64_t fixed_bytes = ViewTemplate().size() + 4096 + 32 * uint64_t(std::max(requested, 1));
-  auto html_estimate = [&](int frames) { return fixed_bytes + (view::PayloadBytes(dyn, kept.size(), frames) + 2) / 3 * 4 + 16; };
+  // (Uncompressed, plus deflate's worst-case growth: an upper bound of the compressed page too.)
+  auto html_estimate = [&](int frames) {
+    const uint64_t raw = view::PayloadBytes(dyn, kept.size(), frames);
+    return fixed_bytes + (raw + raw / 500 + 4 * 64 + 2) / 3 * 4 + 16;
+  };
   int frames = requested;
   while (frames > (moving ? 2 : 1) && html_estimate(frames) > options.max_bytes) --frames;
   if (html_estimate(frames) > options.max_bytes) {
@@ -245,11 +264,13 @@ StatusOr<std::string> EncodeViewHtml(const Asset& asset, const ViewOptions& opti
       {"opacity_scale", payload.opacity_scale},
       {"approximations", approximations},
       {"source", {{"gaussians", r.gaussians}, {"time_min", t0}, {"time_max", t1}, {"texture_mode", asset.metadata.texture_mode}}},
-      {"arrays",
-       {{"positions", ArrayJson(payload.positions, "u16", 3, payload.position_frames)},
-        {"rotations", ArrayJson(payload.rotations, "i8", 4, payload.rotation_frames)},
-        {"log_scales", ArrayJson(payload.log_scales, "f16", 3, payload.scale_frames)},
-        {"colours", ArrayJson(payload.colours, "u8", 4, payload.colour_frames)}}}};
+      {"arrays", nlohmann::json::object()}};
+  const bool z = options.compress;
+  auto& arrays = data["arrays"];
+  ATEX_ASSIGN_OR_RETURN(arrays["positions"], ArrayJson(payload.positions, "u16", 3, payload.position_frames, z, &r.stored_bytes));
+  ATEX_ASSIGN_OR_RETURN(arrays["rotations"], ArrayJson(payload.rotations, "i8", 4, payload.rotation_frames, z, &r.stored_bytes));
+  ATEX_ASSIGN_OR_RETURN(arrays["log_scales"], ArrayJson(payload.log_scales, "f16", 3, payload.scale_frames, z, &r.stored_bytes));
+  ATEX_ASSIGN_OR_RETURN(arrays["colours"], ArrayJson(payload.colours, "u8", 4, payload.colour_frames, z, &r.stored_bytes));
   r.payload_bytes = payload.positions.size() * 2 + payload.rotations.size() + payload.log_scales.size() * 2 +
                     payload.colours.size();
 
@@ -267,6 +288,10 @@ StatusOr<std::string> EncodeViewHtml(const Asset& asset, const ViewOptions& opti
   html.append(json);
   html.append(page.substr(data_at + kDataMarker.size()));
   r.html_bytes = html.size();
+  if (html.size() > options.max_bytes) {
+    return MakeError(StatusCode::kInternal, "view: the page of ", html.size(), " bytes exceeds its estimate's cap of ",
+                     options.max_bytes);
+  }
   if (report) *report = std::move(r);
   return html;
 }
@@ -308,6 +333,13 @@ StatusOr<ViewPayload> DecodeViewHtml(std::string_view html) {
       ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, FromBase64(a.at("data").get_ref<const std::string&>(), name));
       using T = typename std::remove_pointer_t<decltype(out)>::value_type;
       const size_t expected = size_t(*frames) * p.count * size_t(components);
+      const std::string encoding = a.value("encoding", std::string("raw"));
+      if (encoding == view::kCompressedEncoding) {
+        ATEX_ASSIGN_OR_RETURN(bytes, view::DecompressArray(bytes, sizeof(T), p.count * size_t(components), size_t(*frames),
+                                                           expected * sizeof(T)));
+      } else if (encoding != "raw") {
+        return MakeError(StatusCode::kCorrupt, "view page: array ", name, " has the unknown encoding '", encoding, "'");
+      }
       if (bytes.size() != expected * sizeof(T)) {
         return MakeError(StatusCode::kCorrupt, "view page: array ", name, " holds ", bytes.size(), " bytes, expected ",
                          expected * sizeof(T));

@@ -126,6 +126,27 @@ TEST(View, PayloadDecodesToTheDeformedGaussiansAtEachKeyframe) {
   EXPECT_EQ(p.header.at("approximations").size(), 3u);
 }
 
+TEST(View, CompressedAndPlainPagesHoldTheSameKeyframes) {
+  const Asset asset = testing::MakeTestAsset({.count = 500, .sh_degree = 0, .textures = true, .deformation = true});
+  ViewOptions options;
+  options.frames = 6;
+  ViewReport packed_report, plain_report;
+  std::string packed_page, plain_page;
+  const ViewPayload packed = EncodeAndDecode(asset, options, &packed_report, &packed_page);
+  options.compress = false;
+  const ViewPayload plain = EncodeAndDecode(asset, options, &plain_report, &plain_page);
+  EXPECT_EQ(packed.positions, plain.positions);
+  EXPECT_EQ(packed.rotations, plain.rotations);
+  EXPECT_EQ(packed.log_scales, plain.log_scales);
+  EXPECT_EQ(packed.colours, plain.colours);
+  EXPECT_NE(packed_page.find("\"encoding\":\"delta-planes-deflate\""), std::string::npos);
+  EXPECT_NE(plain_page.find("\"encoding\":\"raw\""), std::string::npos);
+  EXPECT_EQ(plain_report.stored_bytes, plain_report.payload_bytes);
+  EXPECT_EQ(packed_report.payload_bytes, plain_report.payload_bytes);
+  EXPECT_LT(packed_report.stored_bytes, plain_report.stored_bytes);
+  EXPECT_LT(packed_page.size(), plain_page.size());
+}
+
 TEST(View, ParametersOfDisabledHeadsAreStoredOnce) {
   Asset asset = testing::MakeTestAsset({.count = 64, .sh_degree = 0, .textures = false, .deformation = true});
   auto& field = *asset.deformation;
@@ -307,6 +328,11 @@ TEST(View, HostilePagesAreRefused) {
   ASSERT_NE(count, std::string::npos);
   wrong_count.replace(count, 10, "\"count\":21");
   EXPECT_EQ(DecodeViewHtml(wrong_count).status().code(), StatusCode::kCorrupt);
+  std::string unknown = *html;
+  const size_t encoding = unknown.find("delta-planes-deflate");
+  ASSERT_NE(encoding, std::string::npos);
+  unknown.replace(encoding, 5, "gamma");
+  EXPECT_EQ(DecodeViewHtml(unknown).status().code(), StatusCode::kCorrupt);
   std::string not_json = *html;
   not_json.insert(data + 16, "{");
   EXPECT_EQ(DecodeViewHtml(not_json).status().code(), StatusCode::kCorrupt);

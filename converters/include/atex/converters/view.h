@@ -11,7 +11,8 @@
 // (converters/src/view/view_template.html, compiled into the library): the projection,
 // low-pass filter, alpha cut and compositing of docs/conventions.md §4-5.
 //
-// Payload (the JSON element id="atex-view-data"; arrays frame-major [F][N][c], F = 1 or K):
+// Payload (the JSON element id="atex-view-data"; arrays frame-major [F][N][c], F = 1 or K,
+// each base64 of its bytes, compressed unless ViewOptions::compress is off):
 //   positions   u16 x3  unorm in the box position_lo .. position_hi (all keyframes)
 //   rotations   i8  x4  snorm/127 (w, x, y, z), unit, each keyframe's sign aligned to the one before
 //   log_scales  f16 x3  natural log of the standard deviations
@@ -60,6 +61,10 @@ struct ViewOptions {
   // from slightly above, upright (DefaultViewCamera).
   std::optional<Camera> camera;
   std::optional<UpAxis> up;   // default: the asset's up axis (UpAxisOf); unknown: -y (3DGS)
+  // Compress each array (delta over keyframes, byte planes, deflate: view_codec.h); the page
+  // inflates it with the browser's DecompressionStream (Chrome 80, Firefox 113, Safari 16.4).
+  // false: plain base64 for older browsers.
+  bool compress = true;
   std::string title = "atex view";
   DeformFn deform;            // default: libatex's DeformForward
   GltfProgress progress;      // fraction of the keyframes baked; false cancels (kCancelled)
@@ -71,7 +76,8 @@ struct ViewReport {
   std::vector<double> times;      // keyframe scene times
   int frames_requested = 0;       // before the size cap (0 for static assets)
   std::vector<std::string> dynamic;  // the arrays stored per keyframe ("positions", ...)
-  uint64_t payload_bytes = 0;     // binary bytes of the arrays before base64
+  uint64_t payload_bytes = 0;     // binary bytes of the arrays before compression and base64
+  uint64_t stored_bytes = 0;      // ... after compression (= payload_bytes without), before base64
   uint64_t html_bytes = 0;
   std::string up;                 // "+z", ...
   Camera camera;                  // the opening camera
@@ -120,7 +126,8 @@ Camera DefaultViewCamera(const Gaussians& gaussians, UpAxis up, int width, int h
 // outside 0..kViewMaxFrames, a camera without positive size and focal lengths),
 // kLimitExceeded (more than kViewMaxSplats Gaussians kept: set max_splats),
 // kBudgetTooSmall (max_bytes below the template plus two keyframes, or one for a static
-// asset), kCancelled, and the deformation's own errors.
+// asset; the keyframes are chosen by their uncompressed size, so a compressed page is
+// usually well under max_bytes), kCancelled, and the deformation's own errors.
 StatusOr<std::string> EncodeViewHtml(const Asset& asset, const ViewOptions& options = {},
                                      ViewReport* report = nullptr);
 // EncodeViewHtml, written atomically.
