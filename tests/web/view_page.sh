@@ -4,14 +4,14 @@
 # first keyframe, a time between two keyframes, the last keyframe) with `atex render`, then
 # opens the page in headless Chromium (view_page.mjs) and compares. The page, the summary,
 # the references and the side-by-side pictures stay in OUT_DIR.
-#   tests/web/view_page.sh ATEX_BINARY SOURCE_DIR OUT_DIR
+#   tests/web/view_page.sh ATEX_BINARY SOURCE_DIR OUT_DIR [ASSET (default: the lego sample)]
 set -euo pipefail
 atex=$1
 source_dir=$2
 out=$3
 here=$(cd "$(dirname "$0")" && pwd)
 mkdir -p "$out"
-sample="$source_dir/samples/lego_adaptive_2MiB.atex"
+sample=${4:-$source_dir/samples/lego_adaptive_2MiB.atex}
 "$atex" view "$sample" -o "$out/view.html" --force --json > "$out/view.json" 2> "$out/view.log"
 # The opening camera and the time range, from the summary.
 # Compared at half the camera's size (the page's #scale=0.5: size and intrinsics halved) to
