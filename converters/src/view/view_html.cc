@@ -142,6 +142,38 @@ Status CheckCamera(const Camera& c) {
   return Status::Ok();
 }
 
+// What the page shows differently from the asset (the payload's "approximations").
+nlohmann::json Approximations(const Asset& asset, int frames) {
+  nlohmann::json out = nlohmann::json::array();
+  if (asset.gaussians.sh_degree > 0) {
+    out.push_back(StrCat("colour: the DC term only (the asset's view-dependent SH of degree ", asset.gaussians.sh_degree,
+                         " is dropped)"));
+  }
+  if (asset.textures) {
+    out.push_back("textures: each Gaussian's texture is replaced by its average (colour + 0.1 mean tanh(rgb), "
+                  "opacity x mean exp(0.1 tanh(a)))");
+  }
+  if (frames > 1) out.push_back("motion: interpolated linearly between keyframes");
+  return out;
+}
+
+// The template with its title and payload markers replaced.
+StatusOr<std::string> FillTemplate(const std::string& title, const std::string& json) {
+  const std::string_view page = ViewTemplate();
+  const size_t data_at = page.find(kDataMarker), title_at = page.find(kTitleMarker);
+  if (data_at == std::string_view::npos || title_at == std::string_view::npos || title_at > data_at) {
+    return MakeError(StatusCode::kInternal, "view: the page template lacks its markers");
+  }
+  std::string html;
+  html.reserve(page.size() + json.size() + title.size());
+  html.append(page.substr(0, title_at));
+  html.append(HtmlEscape(title));
+  html.append(page.substr(title_at + kTitleMarker.size(), data_at - title_at - kTitleMarker.size()));
+  html.append(json);
+  html.append(page.substr(data_at + kDataMarker.size()));
+  return html;
+}
+
 }  // namespace
 
 std::string_view ViewTemplate() { return view::kViewTemplate; }
@@ -234,16 +266,7 @@ StatusOr<std::string> EncodeViewHtml(const Asset& asset, const ViewOptions& opti
     r.target = OrbitTarget(r.camera, centre);
   }
 
-  nlohmann::json approximations = nlohmann::json::array();
-  if (asset.gaussians.sh_degree > 0) {
-    approximations.push_back(StrCat("colour: the DC term only (the asset's view-dependent SH of degree ",
-                                    asset.gaussians.sh_degree, " is dropped)"));
-  }
-  if (asset.textures) {
-    approximations.push_back("textures: each Gaussian's texture is replaced by its average (colour + 0.1 mean tanh(rgb), "
-                             "opacity x mean exp(0.1 tanh(a)))");
-  }
-  if (frames > 1) approximations.push_back("motion: interpolated linearly between keyframes");
+  const nlohmann::json approximations = Approximations(asset, frames);
   for (const auto& a : approximations) r.warnings.push_back(a.get<std::string>());
   const auto& bg = asset.metadata.background;
   nlohmann::json data = {
@@ -274,19 +297,7 @@ StatusOr<std::string> EncodeViewHtml(const Asset& asset, const ViewOptions& opti
   r.payload_bytes = payload.positions.size() * 2 + payload.rotations.size() + payload.log_scales.size() * 2 +
                     payload.colours.size();
 
-  const std::string_view page = ViewTemplate();
-  const size_t data_at = page.find(kDataMarker), title_at = page.find(kTitleMarker);
-  if (data_at == std::string_view::npos || title_at == std::string_view::npos || title_at > data_at) {
-    return MakeError(StatusCode::kInternal, "view: the page template lacks its markers");
-  }
-  std::string html;
-  const std::string json = ScriptSafe(data.dump());
-  html.reserve(page.size() + json.size() + options.title.size());
-  html.append(page.substr(0, title_at));
-  html.append(HtmlEscape(options.title));
-  html.append(page.substr(title_at + kTitleMarker.size(), data_at - title_at - kTitleMarker.size()));
-  html.append(json);
-  html.append(page.substr(data_at + kDataMarker.size()));
+  ATEX_ASSIGN_OR_RETURN(std::string html, FillTemplate(options.title, ScriptSafe(data.dump())));
   r.html_bytes = html.size();
   if (html.size() > options.max_bytes) {
     return MakeError(StatusCode::kInternal, "view: the page of ", html.size(), " bytes exceeds its estimate's cap of ",
