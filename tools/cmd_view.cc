@@ -4,7 +4,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <limits>
 
 #include "asset_view.h"
 #include "atex/container.h"
@@ -109,7 +108,7 @@ atex::cli::Runner SetupView(CLI::App& app) {
   app.add_option("--max-splats", a->max_splats,
                  "Keep at most this many Gaussians, those with the largest opacity x volume (default: all; the page holds "
                  "at most 4,194,304)")
-      ->check(CLI::Range(1LL, std::numeric_limits<long long>::max()));
+      ->check(CLI::PositiveNumber);
   atex::cli::AddReal(app, "--max-mib", &a->max_mib, 0.01, 1e6, "Cap on the page's size in MiB (keyframes are dropped to fit)");
   app.add_option("--data", a->data, "Dataset whose camera (--view) the page opens with");
   app.add_option("--view", a->view, "test:N or train:N (with --data)")->capture_default_str();
@@ -120,7 +119,7 @@ atex::cli::Runner SetupView(CLI::App& app) {
       ->check(CLI::IsMember({"+x", "-x", "+y", "-y", "+z", "-z"}));
   app.add_flag("--no-compress", a->no_compress,
                "Plain base64 arrays, for browsers without DecompressionStream (before Chrome 80, Firefox 113, "
-               "Safari 16.4); about 3x larger");
+               "Safari 16.4); up to about 3x larger");
   app.add_option("--title", a->title, "Page title (default: the asset's file name)");
   atex::cli::AddDatasetOptions(app, &a->dataset);
   atex::cli::AddForceFlag(app, &a->force);
