@@ -16,7 +16,14 @@
 //   positions   u16 x3  unorm in the box position_lo .. position_hi (all keyframes)
 //   rotations   i8  x4  snorm/127 (w, x, y, z), unit, each keyframe's sign aligned to the one before
 //   log_scales  f16 x3  natural log of the standard deviations
-//   colours     u8  x4  rgb: colour_lo + v/255 * (colour_hi - colour_lo); a: v/255 * opacity_scale
+//   colours     u8  x4  rgb: colour_range[0] + v/255 * (colour_range[1] - colour_range[0]);
+//                       a: v/255 * opacity_scale (the opacity times the texture's factor)
+// The JSON: {"format": "atex-view", "version": 1, title, count, times, up ("+z"), up_vector,
+// background, near (the cull plane, 0.2), camera {width, height, fx, fy, cx, cy,
+// world_to_camera[16]}, target (orbit centre), position_lo, position_hi, colour_range,
+// opacity_scale, approximations, source, arrays: {positions | rotations | log_scales |
+// colours: {type, components, frames, encoding ("raw" or view_codec.h's
+// "delta-planes-deflate"), data (base64)}}}.
 // Approximations (listed in the payload's "approximations" and the report's warnings):
 //   - colour is the DC term only (view-dependent SH of degree >= 1 is dropped);
 //   - a texture becomes its average: colour + 0.1 * mean tanh(texel rgb), opacity *
