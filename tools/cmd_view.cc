@@ -1,6 +1,7 @@
 // `atex view ASSET -o scene.html`: one self-contained HTML page that plays the asset in a
 // browser (no server, no network). Thin front end over atex/converters/view.h.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -77,7 +78,9 @@ int RunView(const ViewArgs& a) {
     return true;
   };
   ViewReport report;
+  const auto start = std::chrono::steady_clock::now();
   Status s = WriteViewHtml(a.output, *asset, options, &report);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   progress.Finish();
   if (!s.ok()) return cli::Fail(cmd, s, a.output);
 
@@ -85,12 +88,13 @@ int RunView(const ViewArgs& a) {
   summary["input"] = a.input;
   summary["output"] = a.output;
   summary["background"] = asset->metadata.background;
+  summary["write_seconds"] = seconds;  // bake, compress, write
   if (a.json) {
     cli::PrintJson(summary);
     return cli::kExitOk;
   }
-  std::printf("%s -> %s: %zu of %zu Gaussians, %zu keyframe(s), %.2f MiB\n", a.input.c_str(), a.output.c_str(),
-              report.kept, report.gaussians, report.times.size(), double(report.html_bytes) / (1 << 20));
+  std::printf("%s -> %s: %zu of %zu Gaussians, %zu keyframe(s), %.2f MiB, %.1f s\n", a.input.c_str(), a.output.c_str(),
+              report.kept, report.gaussians, report.times.size(), double(report.html_bytes) / (1 << 20), seconds);
   for (const auto& n : report.notes) std::printf("  note: %s\n", n.c_str());
   for (const auto& w : report.warnings) std::printf("  approximation: %s\n", w.c_str());
   std::printf("  open it in a browser (file:// works): drag to orbit, right-drag to pan, wheel to zoom\n");
