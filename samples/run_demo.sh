@@ -50,6 +50,9 @@ step "atex export: glTF 2.0 with KHR_gaussian_splatting + ATEX extensions, and s
 "$ATEX" export "$SAMPLE" "$OUT/lego.splatv" --force
 echo "open them in a browser: tests/web/install.sh; node tests/web/serve.mjs --data $OUT; then"
 echo "  http://127.0.0.1:8080/?src=/data/lego.glb (Babylon.js) and http://127.0.0.1:8080/splatv.html?src=/data/lego.splatv"
+step "atex view: one self-contained page that plays the sample in any browser (no server)"
+"$ATEX" view "$SAMPLE" -o "$OUT/lego.html" --force
+echo "open it: file://$OUT/lego.html"
 step "atex convert: 3DGS PLY at t=0.5, per-frame SPZ, and the OpenEXR texel atlas"
 "$ATEX" convert "$SAMPLE" "$OUT/lego_t0.5.ply" --time 0.5 --force
 "$ATEX" convert "$SAMPLE" "$OUT/frames" --frames 0:1:0.25 --to spz --force

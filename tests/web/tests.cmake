@@ -6,6 +6,8 @@
 #                       Babylon's world (the golden "upright" check)
 #   web_splatv_reader   our .splatv read by a re-implementation of splaTV's reader and shader
 #   web_cli_export      `atex export` / `atex import` end to end (no node needed)
+#   web_view_cli        `atex view` on the command line (no node needed)
+#   web_view_page       the page of `atex view` in headless Chromium from file:// (view_page.mjs)
 # A missing node, npm package or chromium fails these tests when ATEX_REQUIRE_DATA=1 (CI)
 # and skips them (exit code 77) otherwise.
 set(ATEX_WEB_DIR ${CMAKE_CURRENT_LIST_DIR})
@@ -27,3 +29,11 @@ foreach(check gltf_validator babylon_render splatv_reader)
   set_tests_properties(web_${check} PROPERTIES FIXTURES_REQUIRED atex_web SKIP_RETURN_CODE 77 TIMEOUT 180
     LABELS web ENVIRONMENT "ATEX_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
 endforeach()
+
+# `atex view`: the command line (no browser needed), then the lego sample's page in headless
+# Chromium from file:// against `atex render` of its opening camera at three times.
+add_test(NAME web_view_cli COMMAND bash ${ATEX_WEB_DIR}/view_cli.sh $<TARGET_FILE:atex_cli> ${PROJECT_SOURCE_DIR})
+set_tests_properties(web_view_cli PROPERTIES TIMEOUT 300)
+add_test(NAME web_view_page
+  COMMAND bash ${ATEX_WEB_DIR}/view_page.sh $<TARGET_FILE:atex_cli> ${PROJECT_SOURCE_DIR} ${PROJECT_BINARY_DIR}/web_view)
+set_tests_properties(web_view_page PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 300 LABELS web)
