@@ -9,6 +9,10 @@
 //   garden    real COLMAP points (gsplat's garden) under a real camera: foreground IoU and PSNR
 //   splatv_player  our .splatv in samples/web/splatv.html (our WebGL2 player) at u = 0.5 against
 //             the deformed scene rendered by libatex
+//   player_lego  the bundled lego sample (a trained, textured 4D asset) baked at the time of the
+//             dataset's first test view: PSNR against our render of its Gaussians without textures
+//             (what a KHR_gaussian_splatting player can show; >= 35 dB), and reported against our
+//             textured render and the ground truth
 //   upright   the bundled lego sample (Blender Z-up world): the up direction of its dataset's
 //             cameras, carried through the splat mesh's world matrix (our node rotation and the
 //             loader's handedness root), must point up (+y) in Babylon's world
@@ -109,6 +113,7 @@ try {
   });
   const scenes = [['letter_f', manifest.letter_f], ['letter_f_meshopt', manifest.letter_f_meshopt]];
   if (manifest.garden) scenes.push(['garden', manifest.garden]);
+  if (manifest.player_lego) scenes.push(['player_lego', manifest.player_lego]);
   scenes.push(['splatv_player', manifest.splatv_view]);
   for (const [name, scene] of scenes) {
     const page = await context.newPage();
@@ -132,6 +137,11 @@ try {
     const stats = await page.evaluate(compareInPage, `/data/${scene.reference}`);
     fs.writeFileSync(path.join(dir, `${name}_browser_vs_atex.png`), Buffer.from(stats.sideBySidePng, 'base64'));
     delete stats.sideBySidePng;
+    if (scene.truth) {
+      // A trained asset: also against our textured render and the ground truth (reported).
+      stats.psnrVsAtexTextured = (await page.evaluate(compareInPage, `/data/${scene.atex}`)).psnr;
+      stats.psnrVsTruth = (await page.evaluate(compareInPage, `/data/${scene.truth}`)).psnr;
+    }
     console.log(`${name}: ${JSON.stringify({ ...info, ...stats, seconds: (Date.now() - t0) / 1000 })}`);
     check(errors.length === 0, `${name}: no page errors (${errors.slice(0, 3).join(' | ')})`);
     if (scene.splatv) {
@@ -145,7 +155,14 @@ try {
     }
     check(info.splatMeshes === 1, `${name}: Babylon built ${info.splatMeshes} Gaussian splatting mesh (expected 1)`);
     check(/SwiftShader|ANGLE/i.test(info.renderer), `${name}: WebGL renderer "${info.renderer}"`);
-    if (name.startsWith('letter_f')) {
+    if (scene.truth) {
+      // Issue 21's target for the untextured content is 35 dB against our render of it; Babylon.js
+      // 9.28 reaches 22.0 dB on this 100x100 view (BENCHMARKS.md, interop: missed). These bounds
+      // guard what holds today: the geometry lands where ours does, and the picture is no worse.
+      check(stats.iou >= 0.9, `${name}: foreground IoU ${stats.iou.toFixed(3)} >= 0.9`);
+      check(stats.psnr >= 20, `${name}: PSNR ${stats.psnr.toFixed(2)} dB against our untextured render >= 20 dB`);
+      check(stats.iouUpsideDown < stats.iou - 0.1, `${name}: the upside-down picture matches worse (IoU ${stats.iouUpsideDown.toFixed(3)})`);
+    } else if (name.startsWith('letter_f')) {
       check(stats.iou >= 0.9, `${name}: foreground IoU ${stats.iou.toFixed(3)} >= 0.9`);
       for (const c of ['Red', 'Green', 'Blue']) {
         check(stats[`iou${c}`] >= 0.85, `${name}: ${c.toLowerCase()} IoU ${stats[`iou${c}`].toFixed(3)} >= 0.85`);

@@ -20,6 +20,7 @@
 #include "atex/container.h"
 #include "atex/converters/gltf.h"
 #include "atex/converters/splatv.h"
+#include "atex/dataset.h"
 #include "atex/deform.h"
 #include "atex/file_io.h"
 #include "atex/image.h"
@@ -315,8 +316,46 @@ int main(int argc, char** argv) {
     manifest["upright_missing"] = lego.string();
   }
 
-  atex::Status s = WriteText(out / "manifest.json", manifest.dump(2));
-  if (!s.ok()) return Fail("manifest", s);
+  // 6. A trained asset in the players (issue 21 item 4): the lego sample baked at the time of the
+  //    dataset's first test view, exported to glTF, with three references for that camera: our
+  //    render (textures included: what `atex render` shows), our render of the same Gaussians
+  //    without their textures (what a KHR_gaussian_splatting player can show at best), and the
+  //    ground truth.
+  if (source_dir && fs::exists(lego)) {
+    auto sample = atex::ReadAssetFile((fs::path(source_dir) / "samples" / "lego_adaptive_2MiB.atex").string());
+    if (!sample.ok()) return Fail("lego sample", sample.status());
+    auto dataset = atex::OpenDataset(lego.string());
+    if (!dataset.ok()) return Fail("lego dataset", dataset.status());
+    const atex::View& view = (*dataset)->test_views().at(0);
+    auto truth = (*dataset)->LoadImage(view);
+    if (!truth.ok()) return Fail("lego test view 0", truth.status());
+    atex::Asset baked;
+    baked.metadata = sample->metadata;
+    baked.textures = sample->textures;
+    atex::Status s = atex::DeformForward(*sample->deformation, sample->gaussians, view.camera.time, &baked.gaussians,
+                                         nullptr);
+    atex::GltfExportOptions options;
+    options.time = view.camera.time;
+    if (s.ok()) s = atex::WriteGltfFile((out / "player_lego.glb").string(), *sample, options);
+    if (s.ok()) s = RenderReference(baked, view.camera, out / "player_lego_atex.png");
+    atex::Asset plain = baked;
+    plain.textures.reset();
+    if (s.ok()) s = RenderReference(plain, view.camera, out / "player_lego_untextured.png");
+    if (s.ok()) s = atex::WriteImage((out / "player_lego_truth.png").string(), **truth);
+    if (!s.ok()) return Fail("player lego", s);
+    json cam = CameraJson(view.camera);
+    const auto& bg = sample->metadata.background;
+    cam["background"] = {bg[0], bg[1], bg[2]};
+    cam["pose"] = {{"opencv_world_to_camera", view.camera.world_to_camera}, {"apply_node_rotation", true}};
+    s = WriteText(out / "player_lego_camera.json", cam.dump(2));
+    if (!s.ok()) return Fail("player lego camera", s);
+    manifest["player_lego"] = {{"glb", "player_lego.glb"}, {"camera", "player_lego_camera.json"},
+                               {"reference", "player_lego_untextured.png"}, {"atex", "player_lego_atex.png"},
+                               {"truth", "player_lego_truth.png"}, {"time", view.camera.time},
+                               {"gaussians", sample->gaussians.size()}};
+  }
+
+  if (atex::Status s = WriteText(out / "manifest.json", manifest.dump(2)); !s.ok()) return Fail("manifest", s);
   std::printf("%s\n", manifest.dump(2).c_str());
   return 0;
 }
