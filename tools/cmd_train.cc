@@ -42,6 +42,10 @@ atex::StatusOr<atex::train::TrainConfig> BuildConfig(const TrainArgs& a, const a
       case DatasetKind::kDNerf:
       case DatasetKind::kDNerfNpz: kind = "dnerf"; break;
       case DatasetKind::kN3dv: kind = "n3dv"; break;
+      // [choice] per-frame cameras (nerfstudio) and static captures (COLMAP): D-NeRF's smaller
+      // deformation field, as for the other layouts whose frames each have their own camera.
+      case DatasetKind::kNerfstudio:
+      case DatasetKind::kColmap: kind = "dnerf"; break;
       default: break;
     }
   }

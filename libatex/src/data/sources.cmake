@@ -14,6 +14,10 @@ list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/dataset_panoptic.cc
   ${CMAKE_CURRENT_LIST_DIR}/dataset_dnerf.cc
   ${CMAKE_CURRENT_LIST_DIR}/dataset_n3dv.cc
+  ${CMAKE_CURRENT_LIST_DIR}/dataset_nerfstudio.cc
+  ${CMAKE_CURRENT_LIST_DIR}/dataset_colmap.cc
+  ${CMAKE_CURRENT_LIST_DIR}/transforms_json.cc
+  ${CMAKE_CURRENT_LIST_DIR}/colmap_model.cc
   ${CMAKE_CURRENT_LIST_DIR}/knn.cc
   ${CMAKE_CURRENT_LIST_DIR}/init.cc
   ${CMAKE_CURRENT_LIST_DIR}/init_sources.cc
@@ -29,7 +33,7 @@ function(atex_data_tests)
     LABELS hostile
     TIMEOUT 300)
   atex_add_test(NAME data_dataset_test
-    SOURCES ${dir}/dataset_test.cc ${dir}/init_test.cc
+    SOURCES ${dir}/dataset_test.cc ${dir}/init_test.cc ${dir}/dataset_formats_test.cc
     LIBS atex
     TIMEOUT 600)
   atex_add_test(NAME data_mvs_test
