@@ -185,5 +185,48 @@ TEST_F(CliDatasets, ColmapModelTrainsFromItsPointsAndEvaluates) {
   EXPECT_NE(r.err.find("cameras.txt"), std::string::npos) << r.err;
 }
 
+TEST_F(CliDatasets, N3dvFromItsVideosTrainsAndEvaluates) {
+  const fs::path root = dir_ / "n3dv";
+  fs::create_directories(root);
+  const int cameras = 4, frames = 4;
+  std::vector<double> rows;
+  for (int c = 0; c < cameras; ++c) {
+    // LLFF rotation columns (down, right, back) = (-y, +x, +z): cameras at x = 0.2 c, z = 4,
+    // looking along -z at the origin; (H, W, focal) = (24, 24, 30).
+    const double row[17] = {0, 1, 0, 0.2 * c, 24, -1, 0, 0, 0, 24, 0, 0, 1, 4, 30, 1, 10};
+    rows.insert(rows.end(), row, row + 17);
+  }
+  // poses_bounds.npy: a version-1 .npy header and float64 rows.
+  std::string header = "{'descr': '<f8', 'fortran_order': False, 'shape': (" + std::to_string(cameras) + ", 17), }";
+  header.append(64 - (10 + header.size() + 1) % 64, ' ');
+  header += '\n';
+  std::string npy = std::string("\x93NUMPY\x01\x00", 8);
+  npy.push_back(char(header.size() & 0xff));
+  npy.push_back(char(header.size() >> 8));
+  npy += header;
+  npy.append(reinterpret_cast<const char*>(rows.data()), rows.size() * sizeof(double));
+  WriteText(root / "poses_bounds.npy", npy);
+  const std::string ffmpeg = ATEX_FFMPEG_EXECUTABLE;
+  ASSERT_FALSE(ffmpeg.empty()) << "the ffmpeg command (Debian package ffmpeg) encodes this test's videos";
+  for (int c = 0; c < cameras; ++c) {
+    const fs::path pngs = dir_ / "png" / std::to_string(c);
+    fs::create_directories(pngs);
+    for (int f = 0; f < frames; ++f) {
+      ASSERT_TRUE(WriteImage((pngs / StrCat("00", f, ".png")).string(), Frame(f * 0.7 - 30 * 0.2 * c / 4)).ok());
+    }
+    const std::string command = "'" + ffmpeg + "' -nostdin -v error -y -framerate 30 -i '" + (pngs / "%03d.png").string() +
+                                "' -c:v libx264rgb -qp 0 -pix_fmt rgb24 '" + (root / StrCat("cam0", c, ".mp4")).string() + "'";
+    ASSERT_EQ(std::system(command.c_str()), 0) << command;
+  }
+  const Result info = Run("train --data '" + root.string() + "' --print-config");
+  if (info.exit_code != 0 && info.err.find("without FFmpeg") != std::string::npos) {
+    // A build without FFmpeg: the refusal says how to get frames another way.
+    EXPECT_NE(info.err.find("extract the frames"), std::string::npos) << info.err;
+    return;
+  }
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  TrainAndEvaluate(root, "initialised");
+}
+
 }  // namespace
 }  // namespace atex

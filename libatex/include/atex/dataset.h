@@ -18,7 +18,7 @@
 //   kDNerfNpz  the tiny D-NeRF lego packed as one .npz: images (81,H,W,3) f32,
 //              poses (81,4,4) c2w Blender, times (81,), focal; frames 0-49 train,
 //              50-60 val, 61-80 test. Images stay in memory.
-//   kN3dv      Neural 3D Video after frame extraction: poses_bounds.npy
+//   kN3dv      Neural 3D Video (DyNeRF release or after frame extraction): poses_bounds.npy
 //              [cameras][17] (LLFF 3x5 [R | t | (H, W, focal)], rotation columns
 //              (down, right, back), then near, far) and one folder per camera,
 //              cam00, cam01, ... (sorted; row i = i-th folder), holding frames as
@@ -26,7 +26,12 @@
 //              (.png/.jpg/.jpeg, sorted by name). F = the smallest frame count
 //              (a warning when cameras differ); time = f/(F-1); focal scaled from the
 //              pose's W to the frames' width, principal point at the centre; cam00 is
-//              the test camera; depth_bounds() = (min near, max far).
+//              the test camera; depth_bounds() = (min near, max far). Without camera
+//              folders, the released videos cam00.mp4, cam01.mp4, ... are decoded
+//              (FFmpeg builds only; otherwise kUnsupported saying how to extract the
+//              frames) once, at opening: the first max_timesteps frames of each, kept
+//              downscaled in memory as 8-bit RGB within image_cache_bytes
+//              (kLimitExceeded beyond it).
 //   kNerfstudio Nerfstudio / instant-ngp: a transforms.json (the file, or the folder
 //              holding it; atex/dataset_formats.h for its keys) with per-frame
 //              transform_matrix (c2w, OpenGL axes, converted like D-NeRF's), global or
@@ -183,6 +188,8 @@ class Dataset {
   bool background_is_default_ = true;
   std::array<float, 2> depth_bounds_{0, 0};
   bool has_masks_ = false;
+  // ReadViewImage returns images already downscaled (decoded videos kept small in memory).
+  bool images_prescaled_ = false;
   std::string point_cloud_;
   int downscale_ = 1;
   std::vector<std::string> warnings_;

@@ -109,7 +109,7 @@ StatusOr<std::shared_ptr<const Image>> Dataset::LoadImage(const View& view) cons
   StatusOr<Image> decoded = ReadViewImage(view);
   if (!decoded.ok()) return decoded.status();
   NoteAlpha(*decoded);
-  ATEX_ASSIGN_OR_RETURN(Image image, DownscaleImage(ToRgb(*decoded, background_), downscale_));
+  ATEX_ASSIGN_OR_RETURN(Image image, DownscaleImage(ToRgb(*decoded, background_), images_prescaled_ ? 1 : downscale_));
   if (image.width != view.camera.width || image.height != view.camera.height) {
     return MakeError(StatusCode::kCorrupt, view.image, ": image is ", decoded->width, "x", decoded->height,
                      " but the dataset's cameras are ", view.camera.width * downscale_, "x",
