@@ -33,7 +33,9 @@ struct TrainArgs {
 atex::StatusOr<atex::train::TrainConfig> BuildConfig(const TrainArgs& a, const atex::Dataset* data,
                                                      const atex::Asset* initial) {
   using namespace atex;
-  std::string kind = a.dataset.kind == "dnerf-npz" ? "dnerf" : a.dataset.kind;  // --print-config without a dataset
+  // --print-config without a dataset: the kind named by --dataset-kind (mapped as below).
+  std::string kind = a.dataset.kind;
+  if (kind == "dnerf-npz" || kind == "nerfstudio" || kind == "colmap") kind = "dnerf";
   DatasetKind dataset_kind = ParseDatasetKind(a.dataset.kind).ok() ? *ParseDatasetKind(a.dataset.kind) : DatasetKind::kAuto;
   if (data) {
     dataset_kind = data->kind();

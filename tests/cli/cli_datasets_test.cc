@@ -174,6 +174,13 @@ TEST_F(CliDatasets, ColmapModelTrainsFromItsPointsAndEvaluates) {
       WriteText(root / "sparse/0/points3D.bin", pts_bin);
     }
     TrainAndEvaluate(root, "file: 40 points of");
+    // The kind's defaults (D-NeRF's) are the same named or detected.
+    const Result named = Run("train --print-config --dataset-kind colmap");
+    const Result detected = Run("train --print-config --data '" + root.string() + "'");
+    ASSERT_EQ(named.exit_code, 0) << named.err;
+    ASSERT_EQ(detected.exit_code, 0) << detected.err;
+    EXPECT_EQ(json::parse(named.out), json::parse(detected.out));
+    EXPECT_EQ(json::parse(named.out)["stage1"]["deformation"]["grid"]["channels"], 32);
   }
   // A distorted camera is refused before training, naming the camera and its model.
   const fs::path root = dir_ / "colmap_txt";
