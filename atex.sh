@@ -12,13 +12,13 @@ BUILD=${ATEX_BUILD_DIR:-build}
 # Debian packages the build needs (README, "Dependencies", says why each is here).
 BUILD_PACKAGES=(build-essential cmake pkg-config libzstd-dev libeigen3-dev libdraco-dev libtinygltf-dev
   nlohmann-json3-dev libopenexr-dev libgtest-dev libcli11-dev libmeshoptimizer-dev libwebp-dev libpng-dev libjpeg-dev
-  zlib1g-dev libbenchmark-dev python3-dev pybind11-dev)
+  zlib1g-dev libbenchmark-dev python3-dev pybind11-dev libavformat-dev libavcodec-dev libswscale-dev libavutil-dev)
 # Extra packages for the full test suite: clang for the sanitizer/libFuzzer build, chromium for the
 # third-party checks in a headless browser (Babylon.js), matplotlib (Debian's python3) for the chart tests,
 # numpy and pytest for the Python module's tests (python/tests, run by ctest), pip and venv for its
-# build-backend test and `pip install .` (docs/python.md).
+# build-backend test and `pip install .` (docs/python.md); the ffmpeg command encodes the N3DV .mp4 test videos.
 TEST_PACKAGES=(clang libclang-rt-14-dev libomp-dev chromium python3-matplotlib python3-numpy python3-pytest
-  python3-pip python3-venv)
+  python3-pip python3-venv ffmpeg)
 # Node.js and npm run the glTF-Validator and the SPZ decoder. Many machines already carry a Node.js whose
 # package bundles npm (NodeSource's "nodejs" conflicts with Debian's "npm"), so Debian's are installed only
 # when the commands are missing.

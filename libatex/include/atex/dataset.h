@@ -18,7 +18,7 @@
 //   kDNerfNpz  the tiny D-NeRF lego packed as one .npz: images (81,H,W,3) f32,
 //              poses (81,4,4) c2w Blender, times (81,), focal; frames 0-49 train,
 //              50-60 val, 61-80 test. Images stay in memory.
-//   kN3dv      Neural 3D Video after frame extraction: poses_bounds.npy
+//   kN3dv      Neural 3D Video (DyNeRF release or after frame extraction): poses_bounds.npy
 //              [cameras][17] (LLFF 3x5 [R | t | (H, W, focal)], rotation columns
 //              (down, right, back), then near, far) and one folder per camera,
 //              cam00, cam01, ... (sorted; row i = i-th folder), holding frames as
@@ -26,9 +26,33 @@
 //              (.png/.jpg/.jpeg, sorted by name). F = the smallest frame count
 //              (a warning when cameras differ); time = f/(F-1); focal scaled from the
 //              pose's W to the frames' width, principal point at the centre; cam00 is
-//              the test camera; depth_bounds() = (min near, max far).
-//   kAuto      chosen from what the path holds (.npz file; train_meta.json;
-//              transforms_train.json; poses_bounds.npy).
+//              the test camera; depth_bounds() = (min near, max far). Without camera
+//              folders, the released videos cam00.mp4, cam01.mp4, ... are decoded
+//              (FFmpeg builds only; otherwise kUnsupported saying how to extract the
+//              frames) once, at opening: the first max_timesteps frames of each, kept
+//              downscaled in memory as 8-bit RGB within image_cache_bytes
+//              (kLimitExceeded beyond it).
+//   kNerfstudio Nerfstudio / instant-ngp: a transforms.json (the file, or the folder
+//              holding it; atex/dataset_formats.h for its keys) with per-frame
+//              transform_matrix (c2w, OpenGL axes, converted like D-NeRF's), global or
+//              per-frame pinhole intrinsics (fl_x/fl_y/cx/cy/w/h or camera_angle_x;
+//              non-zero distortion and non-pinhole models are refused, not undistorted),
+//              per-frame `time` (or `timestep` / the largest timestep; else static,
+//              time 0; rescaled to [0, 1] when outside), optional camera_id (then views
+//              carry timesteps: the rank of their time), mask_path and ply_file_path
+//              (point_cloud()). Split, first rule that applies: test_cameras (camera ids);
+//              transforms_test.json beside the file; nerfstudio's test_filenames (else
+//              val_filenames; train_filenames when given); else the frames sorted by
+//              file_path of rank 0, 8, 16, ... are the test split.
+//   kColmap    a static COLMAP model: cameras, images and points3D (.bin, else .txt) in
+//              sparse/0/, sparse/ or the folder, frames in images/. Camera models
+//              PINHOLE, SIMPLE_PINHOLE, and SIMPLE_RADIAL/RADIAL/OPENCV/FULL_OPENCV with
+//              zero distortion (others: kUnsupported naming the camera and model). Time
+//              0, no timesteps; every image its own camera (camera_id = rank by name).
+//              Split: images sorted by name, ranks 0, 8, 16, ... test (LLFF / Mip-NeRF
+//              360). points3D is point_cloud().
+//   kAuto      chosen from what the path holds (.npz file; .json file; train_meta.json;
+//              transforms_train.json; transforms.json; poses_bounds.npy; a COLMAP model).
 //
 // Images are decoded on first use and kept in a bounded, thread-safe LRU cache
 // (DatasetOptions::image_cache_bytes), so a long multi-camera video never needs
@@ -53,7 +77,7 @@ namespace atex {
 class ImageCache;  // data/image_cache.h
 struct InMemoryFrame;
 
-enum class DatasetKind { kAuto, kPanoptic, kDNerf, kDNerfNpz, kN3dv, kInMemory };
+enum class DatasetKind { kAuto, kPanoptic, kDNerf, kDNerfNpz, kN3dv, kNerfstudio, kColmap, kInMemory };
 
 // The background a dataset kind's published results use, the default of
 // DatasetOptions::background and of the training config: white for D-NeRF folders (RGBA
@@ -63,7 +87,7 @@ std::array<float, 3> DefaultBackground(DatasetKind kind);
 // One line saying where that default comes from (for logs and reports).
 std::string DefaultBackgroundReason(DatasetKind kind);
 
-// "panoptic", "dnerf", "dnerf-npz", "n3dv", "in-memory", "auto".
+// "panoptic", "dnerf", "dnerf-npz", "n3dv", "nerfstudio", "colmap", "in-memory", "auto".
 const char* DatasetKindName(DatasetKind kind);
 // Inverse of DatasetKindName; kInvalidArgument for an unknown name.
 StatusOr<DatasetKind> ParseDatasetKind(const std::string& name);
@@ -74,8 +98,9 @@ struct DatasetOptions {
   int downscale = 1;       // integer factor >= 1
   uint64_t image_cache_bytes = uint64_t{2} << 30;
   // Camera ids to hold out for testing instead of the dataset's own split
-  // (Panoptic: cam ids of either meta file; N3DV: camera index, default {0}).
-  // Not meaningful for D-NeRF (kInvalidArgument when set).
+  // (Panoptic: cam ids of either meta file; N3DV: camera index, default {0};
+  // nerfstudio: the frames' camera_id). Not meaningful for D-NeRF or COLMAP
+  // (kInvalidArgument when set).
   std::vector<int> test_cameras;
   // Background RGB that RGBA frames are composited on; default DefaultBackground(kind):
   // the dataset's published convention.
@@ -128,6 +153,10 @@ class Dataset {
   std::array<float, 2> depth_bounds() const { return depth_bounds_; }
   // True when LoadMask can succeed for (some) views.
   bool has_masks() const { return has_masks_; }
+  // A point cloud file that comes with the dataset (COLMAP points3D, nerfstudio's
+  // ply_file_path; atex/point_cloud.h reads it), in the cameras' world frame; empty when
+  // none. The initialisation uses it by default (atex/init.h, kAuto).
+  const std::string& point_cloud() const { return point_cloud_; }
   // Human-readable notes from opening (skipped frames, dropped timesteps); the CLI prints them.
   const std::vector<std::string>& warnings() const { return warnings_; }
 
@@ -159,6 +188,9 @@ class Dataset {
   bool background_is_default_ = true;
   std::array<float, 2> depth_bounds_{0, 0};
   bool has_masks_ = false;
+  // ReadViewImage returns images already downscaled (decoded videos kept small in memory).
+  bool images_prescaled_ = false;
+  std::string point_cloud_;
   int downscale_ = 1;
   std::vector<std::string> warnings_;
 

@@ -48,8 +48,12 @@
 //                 points3D.txt/.bin; atex/point_cloud.h), at most file_points of
 //                 them (an evenly spaced subset when larger; 0 = all). Points without
 //                 colours get the mean colour of the pixels they project to.
-//   kAuto         kHullAndViewVolume if the dataset is multi-view with masks,
-//                 kViewVolume if multi-view without masks (N3DV), else kRandomCube.
+//                 With no point_cloud_path, the dataset's own point cloud
+//                 (Dataset::point_cloud(): COLMAP points3D, nerfstudio ply_file_path).
+//   kAuto         kFile with the dataset's point cloud when it has one (COLMAP,
+//                 nerfstudio with ply_file_path), else kHullAndViewVolume if the
+//                 dataset is multi-view with masks, kViewVolume if multi-view without
+//                 masks (N3DV), else kRandomCube.
 //
 // Every Gaussian gets: colour = the mean of the pixels it projects to in the
 // first-timestep training images (hull and volume points, file points without

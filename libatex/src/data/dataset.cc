@@ -25,6 +25,8 @@ const char* DatasetKindName(DatasetKind kind) {
     case DatasetKind::kDNerf: return "dnerf";
     case DatasetKind::kDNerfNpz: return "dnerf-npz";
     case DatasetKind::kN3dv: return "n3dv";
+    case DatasetKind::kNerfstudio: return "nerfstudio";
+    case DatasetKind::kColmap: return "colmap";
     case DatasetKind::kInMemory: return "in-memory";
   }
   return "?";
@@ -44,11 +46,12 @@ std::vector<const View*> FirstTimestepViews(const std::vector<View>& views) {
 
 StatusOr<DatasetKind> ParseDatasetKind(const std::string& name) {
   for (DatasetKind kind : {DatasetKind::kAuto, DatasetKind::kPanoptic, DatasetKind::kDNerf, DatasetKind::kDNerfNpz,
-                           DatasetKind::kN3dv, DatasetKind::kInMemory}) {
+                           DatasetKind::kN3dv, DatasetKind::kNerfstudio, DatasetKind::kColmap,
+                           DatasetKind::kInMemory}) {
     if (name == DatasetKindName(kind)) return kind;
   }
   return MakeError(StatusCode::kInvalidArgument, "unknown dataset kind '", name,
-                   "' (auto, panoptic, dnerf, dnerf-npz, n3dv)");
+                   "' (auto, panoptic, dnerf, dnerf-npz, n3dv, nerfstudio, colmap)");
 }
 
 Dataset::Dataset(std::string name, DatasetKind kind, const DatasetOptions& options)
@@ -106,7 +109,7 @@ StatusOr<std::shared_ptr<const Image>> Dataset::LoadImage(const View& view) cons
   StatusOr<Image> decoded = ReadViewImage(view);
   if (!decoded.ok()) return decoded.status();
   NoteAlpha(*decoded);
-  ATEX_ASSIGN_OR_RETURN(Image image, DownscaleImage(ToRgb(*decoded, background_), downscale_));
+  ATEX_ASSIGN_OR_RETURN(Image image, DownscaleImage(ToRgb(*decoded, background_), images_prescaled_ ? 1 : downscale_));
   if (image.width != view.camera.width || image.height != view.camera.height) {
     return MakeError(StatusCode::kCorrupt, view.image, ": image is ", decoded->width, "x", decoded->height,
                      " but the dataset's cameras are ", view.camera.width * downscale_, "x",
@@ -304,6 +307,8 @@ StatusOr<nlohmann::json> ReadJsonFile(const std::string& path) {
     return nlohmann::json::parse(text.str());
   } catch (const nlohmann::json::parse_error& e) {
     return MakeError(StatusCode::kCorrupt, path, ": invalid JSON at byte ", e.byte, ": ", e.what());
+  } catch (const nlohmann::json::exception& e) {  // out_of_range: a number beyond double's range (1e999)
+    return MakeError(StatusCode::kCorrupt, path, ": invalid JSON: ", e.what());
   }
 }
 
@@ -401,16 +406,22 @@ StatusOr<std::unique_ptr<Dataset>> OpenDataset(const std::string& path, const Da
     const fs::path p(path);
     if (fs::is_regular_file(p, ec) && p.extension() == ".npz") {
       kind = DatasetKind::kDNerfNpz;
+    } else if (fs::is_regular_file(p, ec) && p.extension() == ".json") {
+      kind = DatasetKind::kNerfstudio;
     } else if (fs::exists(p / "train_meta.json", ec)) {
       kind = DatasetKind::kPanoptic;
     } else if (fs::exists(p / "transforms_train.json", ec)) {
       kind = DatasetKind::kDNerf;
+    } else if (fs::exists(p / "transforms.json", ec)) {
+      kind = DatasetKind::kNerfstudio;
     } else if (fs::exists(p / "poses_bounds.npy", ec)) {
       kind = DatasetKind::kN3dv;
+    } else if (data_detail::LooksLikeColmap(path)) {
+      kind = DatasetKind::kColmap;
     } else {
       return MakeError(StatusCode::kNotFound, path,
-                       ": not a known dataset (no train_meta.json, transforms_train.json or poses_bounds.npy, "
-                       "and not an .npz file)");
+                       ": not a known dataset (no train_meta.json, transforms_train.json, transforms.json, "
+                       "poses_bounds.npy or COLMAP sparse/0/cameras.bin|txt, and not an .npz or .json file)");
     }
   }
   StatusOr<std::unique_ptr<Dataset>> dataset = MakeError(
@@ -420,6 +431,8 @@ StatusOr<std::unique_ptr<Dataset>> OpenDataset(const std::string& path, const Da
     case DatasetKind::kDNerf: dataset = data_detail::OpenDNerf(path, options); break;
     case DatasetKind::kDNerfNpz: dataset = data_detail::OpenDNerfNpz(path, options); break;
     case DatasetKind::kN3dv: dataset = data_detail::OpenN3dv(path, options); break;
+    case DatasetKind::kNerfstudio: dataset = data_detail::OpenNerfstudio(path, options); break;
+    case DatasetKind::kColmap: dataset = data_detail::OpenColmap(path, options); break;
     default: break;
   }
   if (dataset.ok()) ATEX_RETURN_IF_ERROR((*dataset)->SelectViews(options));

@@ -25,5 +25,10 @@ StatusOr<std::unique_ptr<Dataset>> OpenPanoptic(const std::string& folder, const
 StatusOr<std::unique_ptr<Dataset>> OpenDNerf(const std::string& folder, const DatasetOptions& options);
 StatusOr<std::unique_ptr<Dataset>> OpenDNerfNpz(const std::string& file, const DatasetOptions& options);
 StatusOr<std::unique_ptr<Dataset>> OpenN3dv(const std::string& folder, const DatasetOptions& options);
+// `path`: a transforms.json file or the folder holding one.
+StatusOr<std::unique_ptr<Dataset>> OpenNerfstudio(const std::string& path, const DatasetOptions& options);
+StatusOr<std::unique_ptr<Dataset>> OpenColmap(const std::string& folder, const DatasetOptions& options);
+// Whether the folder holds a COLMAP model where OpenColmap looks for one.
+bool LooksLikeColmap(const std::string& folder);
 
 }  // namespace atex::data_detail

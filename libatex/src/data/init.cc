@@ -274,7 +274,8 @@ StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOption
 
   InitMethod method = options.method;
   if (method == InitMethod::kAuto) {
-    method = !multi_view                ? InitMethod::kRandomCube
+    method = !dataset.point_cloud().empty() ? InitMethod::kFile
+             : !multi_view                ? InitMethod::kRandomCube
              : dataset.has_masks()      ? InitMethod::kHullAndViewVolume
                                         : InitMethod::kViewVolume;
   }
@@ -377,7 +378,9 @@ StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOption
     }
 
     if (method == InitMethod::kFile) {
-      ATEX_ASSIGN_OR_RETURN(PointCloud cloud, FileInitCloud(options));
+      InitOptions file_options = options;
+      if (file_options.point_cloud_path.empty()) file_options.point_cloud_path = dataset.point_cloud();
+      ATEX_ASSIGN_OR_RETURN(PointCloud cloud, FileInitCloud(file_options));
       for (size_t i = 0; i < cloud.size(); ++i) {
         const double x[3] = {cloud.positions[3 * i], cloud.positions[3 * i + 1], cloud.positions[3 * i + 2]};
         const std::array<float, 3> colour =

@@ -14,6 +14,11 @@ list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/dataset_panoptic.cc
   ${CMAKE_CURRENT_LIST_DIR}/dataset_dnerf.cc
   ${CMAKE_CURRENT_LIST_DIR}/dataset_n3dv.cc
+  ${CMAKE_CURRENT_LIST_DIR}/video_frames.cc
+  ${CMAKE_CURRENT_LIST_DIR}/dataset_nerfstudio.cc
+  ${CMAKE_CURRENT_LIST_DIR}/dataset_colmap.cc
+  ${CMAKE_CURRENT_LIST_DIR}/transforms_json.cc
+  ${CMAKE_CURRENT_LIST_DIR}/colmap_model.cc
   ${CMAKE_CURRENT_LIST_DIR}/knn.cc
   ${CMAKE_CURRENT_LIST_DIR}/init.cc
   ${CMAKE_CURRENT_LIST_DIR}/init_sources.cc
@@ -29,9 +34,19 @@ function(atex_data_tests)
     LABELS hostile
     TIMEOUT 300)
   atex_add_test(NAME data_dataset_test
-    SOURCES ${dir}/dataset_test.cc ${dir}/init_test.cc
+    SOURCES ${dir}/dataset_test.cc ${dir}/init_test.cc ${dir}/dataset_nerfstudio_test.cc ${dir}/dataset_colmap_test.cc
+            ${dir}/dataset_video_test.cc
     LIBS atex
     TIMEOUT 600)
+  # The ffmpeg command encodes the N3DV video test's .mp4 files (Debian package ffmpeg).
+  find_program(ATEX_FFMPEG_EXECUTABLE ffmpeg)
+  if(TARGET data_dataset_test)
+    set(ffmpeg "${ATEX_FFMPEG_EXECUTABLE}")
+    if(NOT ATEX_FFMPEG_EXECUTABLE)
+      set(ffmpeg "")
+    endif()
+    target_compile_definitions(data_dataset_test PRIVATE ATEX_FFMPEG_EXECUTABLE="${ffmpeg}")
+  endif()
   atex_add_test(NAME data_mvs_test
     SOURCES ${dir}/mvs_test.cc
     LIBS atex

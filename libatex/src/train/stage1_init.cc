@@ -72,7 +72,8 @@ StatusOr<Stage1Start> InitialStage1State(const Dataset& data, const TrainConfig&
     detail = StrCat(detail, ": ", report.hull_points, " hull, ", report.mvs_points, " stereo of ",
                     report.mvs.fused_points, " fused, ", report.mvs.seconds_total, " s");
   } else if (report.method == InitMethod::kFile) {
-    detail = StrCat(detail, ": ", report.file_points, " points of ", s1.init_point_cloud);
+    detail = StrCat(detail, ": ", report.file_points, " points of ",
+                    s1.init_point_cloud.empty() ? data.point_cloud() : s1.init_point_cloud);
   }
   start.event = StrCat("initialised ", gaussians.size(), " Gaussians (", detail, ")");
 
