@@ -35,24 +35,10 @@ struct TrainArgs {
 atex::StatusOr<atex::train::TrainConfig> BuildConfig(const TrainArgs& a, const atex::Dataset* data,
                                                      const atex::Asset* initial) {
   using namespace atex;
-  // --print-config without a dataset: the kind named by --dataset-kind (mapped as below).
-  std::string kind = a.dataset.kind;
-  if (kind == "dnerf-npz" || kind == "nerfstudio" || kind == "colmap") kind = "dnerf";
+  // --print-config without a dataset: the kind named by --dataset-kind.
   DatasetKind dataset_kind = ParseDatasetKind(a.dataset.kind).ok() ? *ParseDatasetKind(a.dataset.kind) : DatasetKind::kAuto;
-  if (data) {
-    dataset_kind = data->kind();
-    switch (data->kind()) {
-      case DatasetKind::kPanoptic: kind = "panoptic"; break;
-      case DatasetKind::kDNerf:
-      case DatasetKind::kDNerfNpz: kind = "dnerf"; break;
-      case DatasetKind::kN3dv: kind = "n3dv"; break;
-      // [choice] per-frame cameras (nerfstudio) and static captures (COLMAP): D-NeRF's smaller
-      // deformation field, as for the other layouts whose frames each have their own camera.
-      case DatasetKind::kNerfstudio:
-      case DatasetKind::kColmap: kind = "dnerf"; break;
-      default: break;
-    }
-  }
+  if (data) dataset_kind = data->kind();
+  const std::string kind = train::DefaultConfigKind(dataset_kind);
   train::TrainConfig config = train::DefaultConfig(kind);
   config.background = data ? data->background() : DefaultBackground(dataset_kind);
   if (initial) config.background = initial->metadata.background;

@@ -215,14 +215,7 @@ py::object Fit(const AssetPtr& holder, py::object budget, py::object dataset_arg
 py::object Train(py::handle dataset_arg, py::object config, py::object progress, const std::string& backend_name,
                  const std::string& stages, py::object init, double time_limit, const std::string& checkpoint_dir) {
   std::shared_ptr<Dataset> dataset = AsDatasetArg(dataset_arg);
-  std::string kind = "generic";
-  switch (dataset->kind()) {
-    case DatasetKind::kPanoptic: kind = "panoptic"; break;
-    case DatasetKind::kDNerf:
-    case DatasetKind::kDNerfNpz: kind = "dnerf"; break;
-    case DatasetKind::kN3dv: kind = "n3dv"; break;
-    default: break;
-  }
+  const std::string kind = train::DefaultConfigKind(dataset->kind());
   train::TrainerOptions options;
   options.config = train::DefaultConfig(kind);
   options.config.background = dataset->background();

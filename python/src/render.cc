@@ -138,7 +138,7 @@ void RegisterCamera(py::module_& m) {
                                   ".npz, Neural 3D Video. Images are decoded on first use and cached.")
       .def(py::init(&OpenDatasetPy), py::arg("path"), py::arg("kind") = "auto", py::arg("timesteps") = 0,
            py::arg("downscale") = 1, py::arg("test_cameras") = std::vector<int>{},
-           "Opens a dataset folder or the lego .npz (kind: auto, panoptic, dnerf, dnerf-npz, n3dv).")
+           "Opens a dataset folder or the lego .npz (kind: auto, panoptic, dnerf, dnerf-npz, n3dv, nerfstudio, colmap).")
       .def_property_readonly("name", &Dataset::name)
       .def_property_readonly("kind", [](const Dataset& d) { return std::string(DatasetKindName(d.kind())); })
       .def_property_readonly("train_views", &Dataset::train_views)

@@ -228,7 +228,7 @@ TEST_F(CliRobustness, OutputsAreNeverClobbered) {
                 1, "--force", "render over an existing image");
   EXPECT_EQ(Slurp(Path("view.png")), "keep");
   // Every command that writes says so in its help.
-  for (const char* command : {"train", "fit", "pack", "convert", "export", "import", "render"}) {
+  for (const char* command : {"train", "fit", "pack", "convert", "export", "import", "render", "view"}) {
     const Result help = Run(std::string(command) + " --help");
     EXPECT_EQ(help.exit_code, 0) << command;
     EXPECT_NE(help.out.find("--force"), std::string::npos) << command;

@@ -153,6 +153,20 @@ TrainConfig DefaultConfig(std::string_view dataset_kind) {
   return config;
 }
 
+const char* DefaultConfigKind(DatasetKind kind) {
+  switch (kind) {
+    case DatasetKind::kPanoptic: return "panoptic";
+    case DatasetKind::kN3dv: return "n3dv";
+    // [choice] per-frame cameras (nerfstudio) and static captures (COLMAP): D-NeRF's smaller
+    // deformation field, as for the other layouts whose frames each have their own camera.
+    case DatasetKind::kDNerf:
+    case DatasetKind::kDNerfNpz:
+    case DatasetKind::kNerfstudio:
+    case DatasetKind::kColmap: return "dnerf";
+    default: return "generic";
+  }
+}
+
 nlohmann::json ConfigToJson(const TrainConfig& config) { return config; }
 
 // The JSON type name used in messages.

@@ -41,6 +41,18 @@ TEST(Config, PanopticRigsStartFromStereoWithCameraColours) {
   }
 }
 
+TEST(Config, EveryDatasetKindNamesItsDefaults) {
+  EXPECT_STREQ(DefaultConfigKind(DatasetKind::kPanoptic), "panoptic");
+  EXPECT_STREQ(DefaultConfigKind(DatasetKind::kN3dv), "n3dv");
+  for (DatasetKind kind : {DatasetKind::kDNerf, DatasetKind::kDNerfNpz, DatasetKind::kNerfstudio, DatasetKind::kColmap}) {
+    EXPECT_STREQ(DefaultConfigKind(kind), "dnerf") << DatasetKindName(kind);
+  }
+  EXPECT_STREQ(DefaultConfigKind(DatasetKind::kInMemory), "generic");
+  // The D-NeRF defaults are what those kinds get: C = 32, not the generic 16.
+  EXPECT_EQ(DefaultConfig(DefaultConfigKind(DatasetKind::kColmap)).stage1.deformation.grid.channels, 32);
+  EXPECT_EQ(DefaultConfig(DefaultConfigKind(DatasetKind::kInMemory)).stage1.deformation.grid.channels, 16);
+}
+
 TEST(Config, DatasetDefaultsFollowFourDGaussians) {
   EXPECT_EQ(DefaultConfig("dnerf").stage1.deformation.grid.channels, 32);
   EXPECT_EQ(DefaultConfig("dnerf").stage1.deformation.mlp_width, 64);

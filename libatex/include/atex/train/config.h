@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "atex/dataset.h"  // DatasetKind
 #include "atex/model.h"
 #include "atex/render.h"  // TextureMode, kDefaultNearPlane
 #include "atex/status.h"
@@ -184,6 +185,10 @@ struct TrainConfig {
 
 // Defaults for a dataset kind ("panoptic", "dnerf", "n3dv"); unknown kinds get the generic defaults.
 TrainConfig DefaultConfig(std::string_view dataset_kind);
+// The name whose DefaultConfig a dataset of `kind` trains with: "panoptic", "n3dv", "dnerf" for
+// both D-NeRF layouts and for the layouts whose frames each carry their own camera (nerfstudio
+// transforms.json, COLMAP), "generic" otherwise. The CLI and the Python module both use it.
+const char* DefaultConfigKind(DatasetKind kind);
 
 nlohmann::json ConfigToJson(const TrainConfig& config);
 // Reads a (possibly partial) JSON object on top of `base`; unknown keys are an error naming the key.
