@@ -16,5 +16,17 @@ if [ $fix = 1 ]; then
     [ -n "$lines" ] && clang-format -i $lines "$f"
   done
 fi
+# Characters, not bytes (mawk counts bytes: "σ²" would count as four).
 # shellcheck disable=SC2086  # the file list is words
-awk 'length($0) > 120 { print FILENAME ":" FNR ": " length($0); n++ } END { print n + 0 " lines past 120 columns"; exit (n > 0) }' $files
+python3 - $files <<'PY'
+import sys
+n = 0
+for path in sys.argv[1:]:
+    with open(path, encoding="utf-8") as f:
+        for number, line in enumerate(f, 1):
+            if len(line.rstrip("\n")) > 120:
+                print("%s:%d: %d" % (path, number, len(line.rstrip("\n"))))
+                n += 1
+print("%d lines past 120 columns" % n)
+sys.exit(1 if n else 0)
+PY

@@ -35,8 +35,9 @@ StatusOr<SelectedBackend> SelectBackend(const std::string& name, const BackendCh
                   "scenes";
 #else
   if (name == "cuda") {
-    return MakeError(StatusCode::kNoDevice,
-                     "this build has no CUDA backend (configured with ATEX_CUDA=OFF or without nvcc); use --backend cpu");
+    return MakeError(
+        StatusCode::kNoDevice,
+        "this build has no CUDA backend (configured with ATEX_CUDA=OFF or without nvcc); use --backend cpu");
   }
   selected.note = "this build has no CUDA backend: using the CPU reference backend";
 #endif

@@ -168,15 +168,17 @@ void Progress::Finish(const std::string& detail) {
 }
 
 void AddDatasetOptions(CLI::App& app, DatasetArgs* args) {
-  app.add_option("--dataset-kind", args->kind, "auto, panoptic, dnerf, dnerf-npz, n3dv, nerfstudio, colmap")->capture_default_str();
+  app.add_option("--dataset-kind", args->kind, "auto, panoptic, dnerf, dnerf-npz, n3dv, nerfstudio, colmap")
+      ->capture_default_str();
   AddInt(app, "--timesteps", &args->timesteps, 0, 1 << 20, "Use only the first N timesteps (0 = all present)");
   AddInt(app, "--downscale", &args->downscale, 1, 64, "Integer image downscale factor");
   AddInt(app, "--timestep-stride", &args->timestep_stride, 1, 1 << 20,
          "Keep every K-th timestep (both splits; times unchanged): K times faster motion");
   AddInt(app, "--train-cameras", &args->train_cameras, 0, 1 << 20,
          "Use N evenly spaced training cameras (sorted ids, ids[i*M/N]; 0 = all)");
-  AddIntList(app, "--test-cameras", &args->test_cameras, 0, 1 << 20,
-             "Hold out these camera ids for testing instead of the dataset's split (Panoptic, N3DV, nerfstudio camera_id)");
+  AddIntList(
+      app, "--test-cameras", &args->test_cameras, 0, 1 << 20,
+      "Hold out these camera ids for testing instead of the dataset's split (Panoptic, N3DV, nerfstudio camera_id)");
 }
 
 }  // namespace atex::cli

@@ -102,5 +102,6 @@ class Progress {
 #define ATEX_CLI_CONCAT_INNER(a, b) a##b
 #define ATEX_CLI_CONCAT(a, b) ATEX_CLI_CONCAT_INNER(a, b)
 // ATEX_REGISTER_COMMAND("info", "Summarise an .atex file", SetupInfo);
-#define ATEX_REGISTER_COMMAND(name, description, setup) \
-  static const bool ATEX_CLI_CONCAT(atex_command_registered_, __LINE__) = ::atex::cli::RegisterCommand(name, description, setup)
+#define ATEX_REGISTER_COMMAND(name, description, setup)                   \
+  static const bool ATEX_CLI_CONCAT(atex_command_registered_, __LINE__) = \
+      ::atex::cli::RegisterCommand(name, description, setup)

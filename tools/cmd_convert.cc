@@ -139,7 +139,8 @@ int RunConvert(const ConvertArgs& a) {
 atex::cli::Runner SetupConvert(CLI::App& app) {
   auto a = std::make_shared<ConvertArgs>();
   app.add_option("input", a->input,
-                 "Input file (.ply incl. .compressed.ply, .spz, .atex, .exr, .splat, .ksplat, .sog or a SOG meta.json), or a 4DGaussians output folder (the run folder, whose "
+                 "Input file (.ply incl. .compressed.ply, .spz, .atex, .exr, .splat, .ksplat, .sog or a SOG "
+                 "meta.json), or a 4DGaussians output folder (the run folder, whose "
                  "highest point_cloud/iteration_N is read, or one iteration folder holding point_cloud.ply and "
                  "deformation.pth)")
       ->required();
@@ -156,7 +157,8 @@ atex::cli::Runner SetupConvert(CLI::App& app) {
       ->check(CLI::IsMember({"opencv", "stored"}));
   app.add_option("--draco-bits", a->draco_bits, "Draco position quantisation bits")->check(CLI::Range(1, 30));
   app.add_flag("--draco-attributes", a->draco_attributes, "Also store colour, opacity, log-scale and rotation");
-  atex::cli::AddReal(app, "--time", &a->time, -1e9, 1e9, "Deform to this scene time for .ply/.spz/.drc output (whole field: every enabled head)")
+  atex::cli::AddReal(app, "--time", &a->time, -1e9, 1e9,
+                     "Deform to this scene time for .ply/.spz/.drc output (whole field: every enabled head)")
       ->each([a](const std::string&) { a->has_time = true; });
   app.add_option("--base", a->base, ".exr input: the asset (.atex/.ply/.spz) whose textures the atlas replaces");
   app.add_option("--atlas-width", a->atlas_width, ".exr output: atlas width in texels (0: square-ish)")

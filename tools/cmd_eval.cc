@@ -82,6 +82,7 @@ atex::cli::Runner SetupEval(CLI::App& app) {
   return [a]() { return RunEval(*a); };
 }
 
-ATEX_REGISTER_COMMAND("eval", "Evaluate an asset on a dataset's test views (PSNR, SSIM, DSSIM, dynamic-region PSNR)", SetupEval);
+ATEX_REGISTER_COMMAND("eval", "Evaluate an asset on a dataset's test views (PSNR, SSIM, DSSIM, dynamic-region PSNR)",
+                      SetupEval);
 
 }  // namespace

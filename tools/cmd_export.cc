@@ -92,11 +92,14 @@ int RunExport(const ExportArgs& a) {
     if (!range.ok()) return atex::cli::Fail("export", range.status());
     const std::vector<double> times = range->Times();
     if (!asset->deformation) {
-      return atex::cli::Fail("export", atex::MakeError(atex::StatusCode::kInvalidArgument, "--frames needs an asset with motion"));
+      return atex::cli::Fail(
+          "export", atex::MakeError(atex::StatusCode::kInvalidArgument, "--frames needs an asset with motion"));
     }
     std::error_code ec;
     std::filesystem::create_directories(out, ec);
-    if (ec) return atex::cli::Fail("export", atex::MakeError(atex::StatusCode::kIoError, "cannot create folder ", a.output, ": ", ec.message()));
+    if (ec)
+      return atex::cli::Fail(
+          "export", atex::MakeError(atex::StatusCode::kIoError, "cannot create folder ", a.output, ": ", ec.message()));
     atex::cli::Progress progress("export frames", static_cast<long long>(times.size()));
     nlohmann::json frames = nlohmann::json::array();
     uint64_t total = 0;
@@ -154,16 +157,17 @@ int RunExport(const ExportArgs& a) {
     atex::cli::PrintJson(summary);
   } else {
     std::printf("%s -> %s (%s): %llu Gaussians, %llu bytes, %.3f s\n", a.input.c_str(), a.output.c_str(),
-                summary["format"].get<std::string>().c_str(),
-                static_cast<unsigned long long>(asset->gaussians.size()),
-                static_cast<unsigned long long>(summary["bytes"].get<uint64_t>()), summary["write_seconds"].get<double>());
+                summary["format"].get<std::string>().c_str(), static_cast<unsigned long long>(asset->gaussians.size()),
+                static_cast<unsigned long long>(summary["bytes"].get<uint64_t>()),
+                summary["write_seconds"].get<double>());
     if (summary.contains("fit")) {
       const auto& f = summary["fit"];
-      std::printf("  motion fit over %d samples: position RMS %.3g (%.3g%% of the scene extent; the motion itself is "
-                  "%.3g%%), rotation RMS %.3g deg, opacity RMS %.3g\n",
-                  f["samples"].get<int>(), f["position_rms"].get<double>(), 100 * f["position_rms_relative"].get<double>(),
-                  100 * f["motion_rms_relative"].get<double>(), f["rotation_rms_deg"].get<double>(),
-                  f["opacity_rms"].get<double>());
+      std::printf(
+          "  motion fit over %d samples: position RMS %.3g (%.3g%% of the scene extent; the motion itself is "
+          "%.3g%%), rotation RMS %.3g deg, opacity RMS %.3g\n",
+          f["samples"].get<int>(), f["position_rms"].get<double>(), 100 * f["position_rms_relative"].get<double>(),
+          100 * f["motion_rms_relative"].get<double>(), f["rotation_rms_deg"].get<double>(),
+          f["opacity_rms"].get<double>());
       if (f["psnr_frames"].get<int>() > 0) {
         std::printf("  rendered by libatex over %d times: PSNR %.2f dB against the full asset, %.2f dB against its DC "
                     "colour without textures\n",
@@ -181,17 +185,22 @@ atex::cli::Runner SetupExport(CLI::App& app) {
   atex::cli::AddReal(app, "--time", &a->time, -1e9, 1e9, "glTF: bake the deformation at this scene time")
       ->each([a](const std::string&) { a->has_time = true; });
   app.add_option("--frames", a->frames, "Write one baked .glb per time start:end:step into the output folder");
-  app.add_flag("--meshopt", a->meshopt, "glTF: EXT_meshopt_compression (int16 rotations; floats exact unless --meshopt-bits)");
-  app.add_option("--meshopt-bits", a->meshopt_bits, "glTF: mantissa bits of the meshopt EXPONENTIAL filter (1-23; 0: exact)")
+  app.add_flag("--meshopt", a->meshopt,
+               "glTF: EXT_meshopt_compression (int16 rotations; floats exact unless --meshopt-bits)");
+  app.add_option("--meshopt-bits", a->meshopt_bits,
+                 "glTF: mantissa bits of the meshopt EXPONENTIAL filter (1-23; 0: exact)")
       ->check(CLI::Range(0, 23));
   app.add_option("--rotation-bits", a->rotation_bits, "glTF: meshopt QUATERNION filter bits")->check(CLI::Range(4, 16));
   app.add_flag("--no-textures", a->no_textures, "glTF: leave out ATEX_gaussian_textures");
   app.add_flag("--no-deformation", a->no_deformation, "glTF: leave out the deformation field");
   app.add_flag("--no-raw", a->no_raw, "glTF: leave out the raw parameters (import then inverts the activations)");
   app.add_flag("--no-color", a->no_color, "glTF: leave out the COLOR_0 point-cloud fallback");
-  app.add_option("--up", a->up, "World up axis of the asset (+x, -x, +y, -y, +z, -z); default: metadata.up (older files: from metadata.axes)")
+  app.add_option(
+         "--up", a->up,
+         "World up axis of the asset (+x, -x, +y, -y, +z, -z); default: metadata.up (older files: from metadata.axes)")
       ->check(CLI::IsMember({"+y", "-y", "+z", "-z"}));
-  app.add_option("--samples", a->samples, "splatv: deformation samples for the motion fit")->check(CLI::Range(4, 100000));
+  app.add_option("--samples", a->samples, "splatv: deformation samples for the motion fit")
+      ->check(CLI::Range(4, 100000));
   app.add_option("--psnr", a->psnr_times, "splatv: render this many times with libatex and report the PSNR of the bake")
       ->check(CLI::Range(0, 1000));
   atex::cli::AddForceFlag(app, &a->force);
@@ -199,6 +208,7 @@ atex::cli::Runner SetupExport(CLI::App& app) {
   return [a]() { return RunExport(*a); };
 }
 
-ATEX_REGISTER_COMMAND("export", "Export an asset to glTF (KHR_gaussian_splatting), a .glb sequence or splaTV", SetupExport);
+ATEX_REGISTER_COMMAND("export", "Export an asset to glTF (KHR_gaussian_splatting), a .glb sequence or splaTV",
+                      SetupExport);
 
 }  // namespace

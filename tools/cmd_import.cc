@@ -57,6 +57,7 @@ atex::cli::Runner SetupImport(CLI::App& app) {
   return [a]() { return RunImport(*a); };
 }
 
-ATEX_REGISTER_COMMAND("import", "Import a glTF (KHR_gaussian_splatting, with our extensions if present) into .atex", SetupImport);
+ATEX_REGISTER_COMMAND("import", "Import a glTF (KHR_gaussian_splatting, with our extensions if present) into .atex",
+                      SetupImport);
 
 }  // namespace

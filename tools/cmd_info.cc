@@ -67,7 +67,8 @@ void TextureBytes(const std::vector<uint8_t>& bytes, const ContainerInfo& info, 
     if (c.type == "TLAY" || c.type == "TEXL") *stored += c.stored_size;
     if (c.type == "TEXL") {
       auto e = atex::StreamEncodingOf(bytes.data(), bytes.size(), c);
-      if (e.ok()) *value_bytes = (*e == atex::ScalarEncoding::kFloat32) ? 4 : (*e == atex::ScalarEncoding::kQuant8) ? 1 : 2;
+      if (e.ok())
+        *value_bytes = (*e == atex::ScalarEncoding::kFloat32) ? 4 : (*e == atex::ScalarEncoding::kQuant8) ? 1 : 2;
     }
   }
 }
@@ -116,8 +117,8 @@ void PrintText(const std::string& path, const std::vector<uint8_t>& bytes, const
                 h.texel_bytes(value_bytes), h.uniform_texel_bytes(value_bytes), value_bytes, stored);
     std::printf("             h\\w %10s %10s %10s\n", "1", "2", "4");
     for (int a = 0; a < 3; ++a) {
-      std::printf("             %-3d %10" PRIu64 " %10" PRIu64 " %10" PRIu64 "\n", 1 << a, h.counts[a][0], h.counts[a][1],
-                  h.counts[a][2]);
+      std::printf("             %-3d %10" PRIu64 " %10" PRIu64 " %10" PRIu64 "\n", 1 << a, h.counts[a][0],
+                  h.counts[a][1], h.counts[a][2]);
     }
   } else {
     std::printf("textures     none\n");
@@ -142,7 +143,8 @@ void PrintText(const std::string& path, const std::vector<uint8_t>& bytes, const
               "stored", "raw", "ratio", "offset");
   for (size_t i = 0; i < info.chunks.size(); ++i) {
     const ChunkInfo& c = info.chunks[i];
-    const double ratio = c.stored_size == 0 ? 0.0 : static_cast<double>(c.raw_size) / static_cast<double>(c.stored_size);
+    const double ratio =
+        c.stored_size == 0 ? 0.0 : static_cast<double>(c.raw_size) / static_cast<double>(c.stored_size);
     std::printf("  %-3zu %-5s %-4s %-19s %-4s %12" PRIu64 " %12" PRIu64 " %6.2fx %10" PRIu64 "%s\n", i, c.type.c_str(),
                 c.critical() ? "yes" : "no", atex::CodecName(c.codec).c_str(), EncodingOf(bytes, c).c_str(),
                 c.stored_size, c.raw_size, ratio, c.offset, c.known ? "" : "  (unknown, skipped)");

@@ -36,7 +36,8 @@ atex::StatusOr<atex::train::TrainConfig> BuildConfig(const TrainArgs& a, const a
                                                      const atex::Asset* initial) {
   using namespace atex;
   // --print-config without a dataset: the kind named by --dataset-kind.
-  DatasetKind dataset_kind = ParseDatasetKind(a.dataset.kind).ok() ? *ParseDatasetKind(a.dataset.kind) : DatasetKind::kAuto;
+  DatasetKind dataset_kind =
+      ParseDatasetKind(a.dataset.kind).ok() ? *ParseDatasetKind(a.dataset.kind) : DatasetKind::kAuto;
   if (data) dataset_kind = data->kind();
   const std::string kind = train::DefaultConfigKind(dataset_kind);
   train::TrainConfig config = train::DefaultConfig(kind);

@@ -28,7 +28,8 @@ struct ViewArgs {
 atex::StatusOr<std::optional<atex::Camera>> OpeningCamera(const ViewArgs& a, const atex::Asset& asset) {
   using namespace atex;
   if (!a.data.empty()) {
-    ATEX_ASSIGN_OR_RETURN(std::unique_ptr<Dataset> dataset, cli::OpenDatasetArgs(a.data, a.dataset, &asset.metadata.background));
+    ATEX_ASSIGN_OR_RETURN(std::unique_ptr<Dataset> dataset,
+                          cli::OpenDatasetArgs(a.data, a.dataset, &asset.metadata.background));
     ATEX_ASSIGN_OR_RETURN(View view, cli::PickView(*dataset, a.view));
     return std::optional<Camera>(view.camera);
   }
@@ -50,7 +51,8 @@ int RunView(const ViewArgs& a) {
                            "camera is the dataset's (--view): give one or the other");
   }
   if (explicit_camera && (a.size.empty() || a.intrinsics.size() != 4 || a.world_to_camera.size() != 16)) {
-    return cli::Usage(cmd, "an explicit camera needs --size WxH, --intrinsics fx fy cx cy and --world-to-camera (16 values)");
+    return cli::Usage(
+        cmd, "an explicit camera needs --size WxH, --intrinsics fx fy cx cy and --world-to-camera (16 values)");
   }
   if (Status s = cli::CheckOutput(a.output, a.force, {{a.input}, {".html", ".htm"}, "-o"}); !s.ok()) {
     return cli::Fail(cmd, s, a.output);
@@ -109,11 +111,13 @@ atex::cli::Runner SetupView(CLI::App& app) {
                  "Keyframes baked over the time range (default: 2 x (time nodes of the deformation grid - 1) + 1, "
                  "2..120; at most 256); fewer when the page would exceed --max-mib")
       ->check(CLI::Range(2, atex::kViewMaxFrames));
-  app.add_option("--max-splats", a->max_splats,
-                 "Keep at most this many Gaussians, those with the largest opacity x volume (default: all; the page holds "
-                 "at most 4,194,304)")
+  app.add_option(
+         "--max-splats", a->max_splats,
+         "Keep at most this many Gaussians, those with the largest opacity x volume (default: all; the page holds "
+         "at most 4,194,304)")
       ->check(CLI::PositiveNumber);
-  atex::cli::AddReal(app, "--max-mib", &a->max_mib, 0.01, 1e6, "Cap on the page's size in MiB (keyframes are dropped to fit)");
+  atex::cli::AddReal(app, "--max-mib", &a->max_mib, 0.01, 1e6,
+                     "Cap on the page's size in MiB (keyframes are dropped to fit)");
   app.add_option("--data", a->data, "Dataset whose camera (--view) the page opens with");
   app.add_option("--view", a->view, "test:N or train:N (with --data)")->capture_default_str();
   app.add_option("--size", a->size, "WxH of an explicit opening camera (not with --data)");

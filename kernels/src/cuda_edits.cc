@@ -97,8 +97,8 @@ Status CudaBackend::AttachTextures(const TexturePool& layout) {
 Status CudaBackend::ResizeTextures(const train::TextureResize& resize) {
   if (!has_textures_) return MakeError(StatusCode::kInvalidArgument, "resize of textures the model does not have");
   if (resize.heights.size() != count_ || resize.widths.size() != count_) {
-    return MakeError(StatusCode::kInvalidArgument, "texture resize for ", resize.heights.size(), " Gaussians, model has ",
-                     count_);
+    return MakeError(StatusCode::kInvalidArgument, "texture resize for ", resize.heights.size(),
+                     " Gaussians, model has ", count_);
   }
   TexturePool grown = layout_;
   grown.heights = resize.heights;

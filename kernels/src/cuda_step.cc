@@ -221,7 +221,8 @@ RenderStats CudaBackend::MakeStats(const train::StepRequest& request, const Came
 }
 
 Status CudaBackend::ZeroGrads() {
-  for (Param* p : {&positions_, &rotations_, &log_scales_, &opacity_, &sh_}) ATEX_RETURN_IF_ERROR(p->grad.Zero(stream_));
+  for (Param* p : {&positions_, &rotations_, &log_scales_, &opacity_, &sh_})
+    ATEX_RETURN_IF_ERROR(p->grad.Zero(stream_));
   if (has_textures_) ATEX_RETURN_IF_ERROR(texels_.grad.Zero(stream_));
   if (has_deformation_) {
     ATEX_RETURN_IF_ERROR(grid_.grad.Zero(stream_));
@@ -241,7 +242,8 @@ Status CudaBackend::SetCommunicator(train::Communicator* comm) {
 
 Status CudaBackend::ReduceGradients(const train::StepRequest& request, bool textured) {
   std::vector<train::Communicator::DeviceBuffer> buffers;
-  for (Param* p : {&positions_, &rotations_, &log_scales_, &opacity_, &sh_}) buffers.push_back({p->grad.data(), p->grad.size()});
+  for (Param* p : {&positions_, &rotations_, &log_scales_, &opacity_, &sh_})
+    buffers.push_back({p->grad.data(), p->grad.size()});
   if (textured) buffers.push_back({texels_.grad.data(), texels_.grad.size()});
   if (request.apply_deformation) {
     buffers.push_back({grid_.grad.data(), grid_.grad.size()});

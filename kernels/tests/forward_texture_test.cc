@@ -1,8 +1,8 @@
 // The forward rasteriser's rearranged texture sample (render/forward_texture.h) against the
 // reference functions of atex/detail/texture.h, on the CPU: the camera-frame plane rows give
 // the coordinates of ComputeTexCoord with the world ray, and the branch-free taps give
-// SampleTexels' value at MakeBilinearTaps' taps, never reading outside the texture. Needs no GPU, so it runs in CI; the whole
-// kernel is checked against the CPU engine by render_parity_test on a GPU.
+// SampleTexels' value at MakeBilinearTaps' taps, never reading outside the texture. Needs no GPU, so it runs in CI; the
+// whole kernel is checked against the CPU engine by render_parity_test on a GPU.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -97,7 +97,8 @@ TEST(ForwardTexture, CameraFramePlaneGivesTheReferenceCoordinates) {
       // Reference in float (the CPU engine's form) and the exact value in double.
       const detail::TexCoord<float> ref = detail::ComputeTexCoord(s.frame, detail::PixelRayDirection(s.cam, px, py));
       const Vec3<double> c{{(px - s.cx) / s.fx, (py - s.cy) / s.fy, 1.0}};
-      const detail::TexCoord<double> exact = detail::ComputeTexCoord(s.exact, detail::TransposeTimes(s.cam_rotation, c));
+      const detail::TexCoord<double> exact =
+          detail::ComputeTexCoord(s.exact, detail::TransposeTimes(s.cam_rotation, c));
       if (exact.u_clamped && exact.v_clamped) continue;  // both clamped to a corner: nothing to compare
       float u, v;
       ForwardTexCoord(plane, (px - s.cam.cx) / s.cam.fx, (py - s.cam.cy) / s.cam.fy, &u, &v);
@@ -122,8 +123,9 @@ TEST(ForwardTexture, CameraFramePlaneGivesTheReferenceCoordinates) {
     }
   }
   EXPECT_GT(unclamped, 10000) << "too few samples inside the texture to test anything";
-  std::printf("[forward texture] coordinates: worst error %.2f of the allowed; %d of 40000 samples inside the texture\n",
-              worst_ratio, unclamped);
+  std::printf(
+      "[forward texture] coordinates: worst error %.2f of the allowed; %d of 40000 samples inside the texture\n",
+      worst_ratio, unclamped);
 }
 
 TEST(ForwardTexture, BranchFreeTapsSampleLikeTheReference) {

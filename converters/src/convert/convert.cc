@@ -55,10 +55,10 @@ StatusOr<FileFormat> Resolve(FileFormat format, const std::string& path, const c
   }
   const FileFormat by_name = FileFormatFromPath(path);
   if (by_name == FileFormat::kUnknown) {
-    return MakeError(StatusCode::kInvalidArgument, "cannot tell the format of ", role, " '", path,
-                     "' from its extension (.ply, .spz, .atex, .exr, .drc, .splat, .ksplat, .sog, meta.json; a folder for a ",
-                     "4DGaussians run or a SOG); ",
-                     "name it with --from/--to");
+    return MakeError(
+        StatusCode::kInvalidArgument, "cannot tell the format of ", role, " '", path,
+        "' from its extension (.ply, .spz, .atex, .exr, .drc, .splat, .ksplat, .sog, meta.json; a folder for a ",
+        "4DGaussians run or a SOG); ", "name it with --from/--to");
   }
   return by_name;
 }

@@ -194,7 +194,8 @@ TEST(Convert, TimeDeformsDynamicAssets) {
   ASSERT_TRUE(out.ok());
   ExpectBitEqual(out->positions, expected.positions);
   double moved = 0;
-  for (size_t i = 0; i < expected.positions.size(); ++i) moved += std::fabs(expected.positions[i] - asset.gaussians.positions[i]);
+  for (size_t i = 0; i < expected.positions.size(); ++i)
+    moved += std::fabs(expected.positions[i] - asset.gaussians.positions[i]);
   EXPECT_GT(moved, 0.0);  // the test would be vacuous if the field were the identity
 
   // A static asset ignores --time with a note.

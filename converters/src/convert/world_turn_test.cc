@@ -33,7 +33,8 @@ double Colour(const Gaussians& g, size_t i, const double d[3], int channel) {
   double basis[16];
   gltf::EvaluateShBasis(d[0], d[1], d[2], g.sh_degree, basis);
   double c = 0;
-  for (int k = 0; k < g.sh_coeffs(); ++k) c += basis[k] * g.sh[(i * size_t(g.sh_coeffs()) + size_t(k)) * 3 + size_t(channel)];
+  for (int k = 0; k < g.sh_coeffs(); ++k)
+    c += basis[k] * g.sh[(i * size_t(g.sh_coeffs()) + size_t(k)) * 3 + size_t(channel)];
   return c;
 }
 

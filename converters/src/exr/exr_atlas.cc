@@ -104,7 +104,8 @@ StatusOr<TexturePool> DecodeExrAtlas(const uint8_t* exr, size_t exr_size, std::s
     const int h = pool.heights[i], w = pool.widths[i];
     for (int v = 0; v < h; ++v) {
       for (int u = 0; u < w; ++u) {
-        const uint16_t* pixel = &image.rgba[((static_cast<size_t>(layout.y[i]) + v) * image.width + layout.x[i] + u) * 4];
+        const uint16_t* pixel =
+            &image.rgba[((static_cast<size_t>(layout.y[i]) + v) * image.width + layout.x[i] + u) * 4];
         float* texel = &pool.texels[(pool.offsets[i] + static_cast<uint64_t>(v) * w + u) * kTexelChannels];
         for (int c = 0; c < 4; ++c) {
           texel[c] = HalfBitsToFloat(pixel[c]);

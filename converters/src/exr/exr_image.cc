@@ -129,7 +129,8 @@ StatusOr<HalfImage> DecodeHalfImage(const uint8_t* data, size_t size, uint64_t m
     HalfImage image;
     image.width = static_cast<int>(width);
     image.height = static_cast<int>(height);
-    if (const auto* v = header.findTypedAttribute<Imf::IntAttribute>("atexAtlasVersion")) image.atlas_version = v->value();
+    if (const auto* v = header.findTypedAttribute<Imf::IntAttribute>("atexAtlasVersion"))
+      image.atlas_version = v->value();
     if (const auto* c = header.findTypedAttribute<Imf::IntAttribute>("atexAtlasCount")) image.atlas_count = c->value();
     image.rgba.assign(static_cast<size_t>(width) * static_cast<size_t>(height) * 4, 0);
     file.setFrameBuffer(RgbaFrameBuffer(image.rgba.data(), window.min.x, window.min.y, image.width));

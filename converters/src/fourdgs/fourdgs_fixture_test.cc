@@ -127,7 +127,8 @@ void RunFixture(const fs::path& dir) {
     Gaussians ours;
     ASSERT_TRUE(DeformForward(field, asset->gaussians, times[i], &ours, nullptr).ok());
     BasicGaussians<double> ours_double;
-    ASSERT_TRUE(DeformForward(Cast<double>(field), Cast<double>(asset->gaussians), times[i], &ours_double, nullptr).ok());
+    ASSERT_TRUE(
+        DeformForward(Cast<double>(field), Cast<double>(asset->gaussians), times[i], &ours_double, nullptr).ok());
     const Gaussians rounded = Cast<float>(ours_double);
     const std::string at = " at t = " + std::to_string(times[i]);
     for (auto [name, a, b, c] :

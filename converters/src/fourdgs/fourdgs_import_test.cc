@@ -100,7 +100,8 @@ TorchStateDict InMemory(const std::vector<TensorSpec>& specs) {
 void ExpectSameField(const DeformationField& a, const DeformationField& b) {
   ASSERT_EQ(a.config.grid.scales(), b.config.grid.scales());
   for (int s = 0; s < a.config.grid.scales(); ++s)
-    for (int axis = 0; axis < 4; ++axis) EXPECT_EQ(a.config.grid.resolution(s, axis), b.config.grid.resolution(s, axis));
+    for (int axis = 0; axis < 4; ++axis)
+      EXPECT_EQ(a.config.grid.resolution(s, axis), b.config.grid.resolution(s, axis));
   EXPECT_EQ(a.config.grid.channels, b.config.grid.channels);
   EXPECT_EQ(a.config.mlp_width, b.config.mlp_width);
   EXPECT_EQ(a.config.trunk_layers, b.config.trunk_layers);
@@ -274,7 +275,8 @@ void WriteText(const std::filesystem::path& path, const std::string& text) {
 void WriteIteration(const std::filesystem::path& dir, const Gaussians& g, const DeformationField& f) {
   std::filesystem::create_directories(dir);
   ASSERT_TRUE(WritePlyGaussians((dir / "point_cloud.ply").string(), g).ok());
-  ASSERT_TRUE(WriteFileAtomic((dir / "deformation.pth").string(), StateDictArchive(ToStateDict(f), "deformation/")).ok());
+  ASSERT_TRUE(
+      WriteFileAtomic((dir / "deformation.pth").string(), StateDictArchive(ToStateDict(f), "deformation/")).ok());
 }
 
 // Issue 24: a garbled cfg_args (cut, or not a Namespace) silently lost the opacity and SH

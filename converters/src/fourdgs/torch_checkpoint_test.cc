@@ -24,14 +24,17 @@ StatusOr<TorchStateDict> Read(const std::vector<uint8_t>& archive) {
 }
 
 // An archive from a custom pickle and raw storage records.
-std::vector<uint8_t> Archive(const PickleBuilder& pickle, const std::vector<std::pair<std::string, std::vector<uint8_t>>>& records,
+std::vector<uint8_t> Archive(const PickleBuilder& pickle,
+                             const std::vector<std::pair<std::string, std::vector<uint8_t>>>& records,
                              const std::string& byteorder = "little") {
   ZipWriter zip;
   EXPECT_TRUE(zip.Add("m/data.pkl", pickle.bytes().data(), pickle.bytes().size(), false).ok());
   if (!byteorder.empty()) {
-    EXPECT_TRUE(zip.Add("m/byteorder", reinterpret_cast<const uint8_t*>(byteorder.data()), byteorder.size(), false).ok());
+    EXPECT_TRUE(
+        zip.Add("m/byteorder", reinterpret_cast<const uint8_t*>(byteorder.data()), byteorder.size(), false).ok());
   }
-  for (const auto& [name, bytes] : records) EXPECT_TRUE(zip.Add(StrCat("m/data/", name), bytes.data(), bytes.size(), false).ok());
+  for (const auto& [name, bytes] : records)
+    EXPECT_TRUE(zip.Add(StrCat("m/data/", name), bytes.data(), bytes.size(), false).ok());
   return zip.Finish();
 }
 
@@ -89,7 +92,8 @@ TEST(TorchCheckpoint, OtherFloatingDtypesAreConvertedAndIntegersKeepTheirShape) 
   EXPECT_EQ(d->tensors[0].values, (std::vector<float>{1.5f, -2.25f, 1e-3f}));
 
   // float16: 1.0 = 0x3c00, -2.0 = 0xc000, 65504 = 0x7bff, smallest subnormal 2^-24 = 0x0001.
-  auto h = Read(Archive(OneTensor("HalfStorage", 4, 0, {4}, {1}), {{"0", {0x00, 0x3c, 0x00, 0xc0, 0xff, 0x7b, 0x01, 0x00}}}));
+  auto h = Read(
+      Archive(OneTensor("HalfStorage", 4, 0, {4}, {1}), {{"0", {0x00, 0x3c, 0x00, 0xc0, 0xff, 0x7b, 0x01, 0x00}}}));
   ASSERT_TRUE(h.ok()) << h.status().ToString();
   EXPECT_EQ(h->tensors[0].values, (std::vector<float>{1.0f, -2.0f, 65504.0f, std::ldexp(1.0f, -24)}));
 

@@ -24,7 +24,18 @@
 namespace atex::fourdgs_internal {
 
 // Element types of torch storages (torch.<Name>Storage).
-enum class TorchDtype : uint8_t { kFloat32, kFloat64, kFloat16, kBFloat16, kInt64, kInt32, kInt16, kInt8, kUInt8, kBool };
+enum class TorchDtype : uint8_t {
+  kFloat32,
+  kFloat64,
+  kFloat16,
+  kBFloat16,
+  kInt64,
+  kInt32,
+  kInt16,
+  kInt8,
+  kUInt8,
+  kBool
+};
 int DtypeSize(TorchDtype dtype);
 const char* DtypeName(TorchDtype dtype);
 bool IsFloating(TorchDtype dtype);

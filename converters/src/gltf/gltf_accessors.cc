@@ -44,7 +44,8 @@ T Load(const uint8_t* p) {
 
 StatusOr<AccessorData> ResolveAccessor(const tinygltf::Model& model, int64_t index, const std::string& where) {
   if (index < 0 || size_t(index) >= model.accessors.size()) {
-    return MakeError(StatusCode::kCorrupt, where, ": accessor ", index, " does not exist (", model.accessors.size(), " accessors)");
+    return MakeError(StatusCode::kCorrupt, where, ": accessor ", index, " does not exist (", model.accessors.size(),
+                     " accessors)");
   }
   const tinygltf::Accessor& a = model.accessors[size_t(index)];
   const std::string name = StrCat("accessors[", index, "] (", where, ")");
@@ -67,11 +68,13 @@ StatusOr<AccessorData> ResolveAccessor(const tinygltf::Model& model, int64_t ind
   d.normalized = a.normalized;
   d.count = a.count;
   const int component_size = ComponentSize(a.componentType);
-  if (d.components == 0) return MakeError(StatusCode::kUnsupported, name, " has type ", a.type, " (not SCALAR or VEC2..4)");
+  if (d.components == 0)
+    return MakeError(StatusCode::kUnsupported, name, " has type ", a.type, " (not SCALAR or VEC2..4)");
   if (component_size == 0) return MakeError(StatusCode::kCorrupt, name, " has component type ", a.componentType);
   const size_t element = size_t(d.components) * size_t(component_size);
   d.stride = v.byteStride != 0 ? v.byteStride : element;
-  if (d.stride < element) return MakeError(StatusCode::kCorrupt, name, ": byteStride ", d.stride, " < element size ", element);
+  if (d.stride < element)
+    return MakeError(StatusCode::kCorrupt, name, ": byteStride ", d.stride, " < element size ", element);
   if (d.count == 0) return MakeError(StatusCode::kCorrupt, name, " has count 0");
   if (a.byteOffset > v.byteLength || element > v.byteLength - a.byteOffset) {
     return MakeError(StatusCode::kCorrupt, name, ": byteOffset ", a.byteOffset, " leaves no room in its bufferView (",
@@ -80,8 +83,8 @@ StatusOr<AccessorData> ResolveAccessor(const tinygltf::Model& model, int64_t ind
   // Last element must end inside the view: byteOffset + (count-1)*stride + element <= byteLength.
   const size_t room = v.byteLength - a.byteOffset - element;
   if (d.count - 1 > room / d.stride) {
-    return MakeError(StatusCode::kCorrupt, name, ": ", d.count, " elements of stride ", d.stride, " exceed its bufferView (",
-                     v.byteLength, " bytes from offset ", a.byteOffset, ")");
+    return MakeError(StatusCode::kCorrupt, name, ": ", d.count, " elements of stride ", d.stride,
+                     " exceed its bufferView (", v.byteLength, " bytes from offset ", a.byteOffset, ")");
   }
   d.first = buffer.data() + v.byteOffset + a.byteOffset;
   return d;
@@ -90,7 +93,8 @@ StatusOr<AccessorData> ResolveAccessor(const tinygltf::Model& model, int64_t ind
 Status CheckAccessor(const AccessorData& a, int components, std::initializer_list<int> component_types,
                      size_t expected_count, const std::string& where) {
   if (a.components != components) {
-    return MakeError(StatusCode::kCorrupt, where, " has ", a.components, " components per element, expected ", components);
+    return MakeError(StatusCode::kCorrupt, where, " has ", a.components, " components per element, expected ",
+                     components);
   }
   if (std::find(component_types.begin(), component_types.end(), a.component_type) == component_types.end()) {
     return MakeError(StatusCode::kCorrupt, where, " has component type ", a.component_type, ", which it may not use");

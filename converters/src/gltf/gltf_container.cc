@@ -26,7 +26,9 @@ constexpr int kMaxJsonDepth = 64;               // tinygltf converts extension J
 // claim more are forged. The same bound caps the total expansion of a file.
 constexpr uint64_t kMeshoptMaxExpansion = 64;
 
-uint32_t U32(const uint8_t* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
+uint32_t U32(const uint8_t* p) {
+  return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
+}
 void PutU32(std::vector<uint8_t>& out, uint32_t v) {
   for (int i = 0; i < 4; ++i) out.push_back(uint8_t(v >> (8 * i)));
 }
@@ -47,16 +49,18 @@ StatusOr<Container> SplitContainer(const uint8_t* data, size_t size) {
     const uint32_t version = U32(data + 4);
     if (version != 2) return MakeError(StatusCode::kUnsupportedVersion, "GLB version ", version, " (only 2 is known)");
     const uint64_t length = U32(data + 8);
-    if (length > size) return MakeError(StatusCode::kTruncated, "GLB header says ", length, " bytes, the file has ", size);
-    if (length < 20) return MakeError(StatusCode::kCorrupt, "GLB length ", length, " leaves no room for the JSON chunk");
+    if (length > size)
+      return MakeError(StatusCode::kTruncated, "GLB header says ", length, " bytes, the file has ", size);
+    if (length < 20)
+      return MakeError(StatusCode::kCorrupt, "GLB length ", length, " leaves no room for the JSON chunk");
     uint64_t offset = 12;
     bool first = true;
     while (offset + 8 <= length) {
       const uint64_t chunk_length = U32(data + offset);
       const uint32_t chunk_type = U32(data + offset + 4);
       if (chunk_length > length - offset - 8) {
-        return MakeError(StatusCode::kTruncated, "GLB chunk at byte ", offset, " claims ", chunk_length, " bytes; only ",
-                         length - offset - 8, " remain");
+        return MakeError(StatusCode::kTruncated, "GLB chunk at byte ", offset, " claims ", chunk_length,
+                         " bytes; only ", length - offset - 8, " remain");
       }
       const uint8_t* payload = data + offset + 8;
       if (first) {
@@ -74,7 +78,8 @@ StatusOr<Container> SplitContainer(const uint8_t* data, size_t size) {
   }
   size_t start = 0;
   if (size >= 3 && data[0] == 0xEF && data[1] == 0xBB && data[2] == 0xBF) start = 3;  // tolerate a UTF-8 BOM
-  while (start < size && (data[start] == ' ' || data[start] == '\n' || data[start] == '\r' || data[start] == '\t')) ++start;
+  while (start < size && (data[start] == ' ' || data[start] == '\n' || data[start] == '\r' || data[start] == '\t'))
+    ++start;
   if (start >= size || data[start] != '{') return MakeError(StatusCode::kBadMagic, "neither GLB nor glTF JSON");
   c.json = std::string_view(reinterpret_cast<const char*>(data), size);
   return c;
@@ -135,7 +140,8 @@ Status ReadSize(const json& object, const char* key, bool required, uint64_t def
     return MakeError(StatusCode::kCorrupt, where, ".", key, " is not a non-negative integer");
   }
   *out = it->get<uint64_t>();
-  if (*out > (uint64_t{1} << 53)) return MakeError(StatusCode::kLimitExceeded, where, ".", key, " = ", *out, " is too large");
+  if (*out > (uint64_t{1} << 53))
+    return MakeError(StatusCode::kLimitExceeded, where, ".", key, " = ", *out, " is too large");
   return Status::Ok();
 }
 
@@ -169,16 +175,18 @@ Status DecodeMeshoptView(const json& ext, const std::vector<BufferSource>& buffe
     if (!f->is_string()) return MakeError(StatusCode::kCorrupt, where, ".filter is not a string");
     ATEX_ASSIGN_OR_RETURN(filter, ParseMeshoptFilter(f->get<std::string>()));
   }
-  if (stride == 0 || stride > 256 || count == 0) return MakeError(StatusCode::kCorrupt, where, ": byteStride ", stride, " count ", count);
+  if (stride == 0 || stride > 256 || count == 0)
+    return MakeError(StatusCode::kCorrupt, where, ": byteStride ", stride, " count ", count);
   const uint64_t decoded = count * stride;  // both < 2^53 / 256: no overflow
   if (count > (uint64_t{1} << 40) || decoded != parent_length) {
-    return MakeError(StatusCode::kCorrupt, where, ": count*byteStride = ", count, "*", stride, " differs from the view's byteLength ",
-                     parent_length);
+    return MakeError(StatusCode::kCorrupt, where, ": count*byteStride = ", count, "*", stride,
+                     " differs from the view's byteLength ", parent_length);
   }
   if (decoded > kMeshoptMaxExpansion * length + 4096) {
     return MakeError(StatusCode::kCorrupt, where, ": ", length, " compressed bytes cannot hold ", decoded, " bytes");
   }
-  if (decoded > budget_left) return MakeError(StatusCode::kLimitExceeded, where, ": decoding would exceed the size limit");
+  if (decoded > budget_left)
+    return MakeError(StatusCode::kLimitExceeded, where, ": decoding would exceed the size limit");
   if (!MeshoptAvailable()) {
     return MakeError(StatusCode::kUnsupported, "EXT_meshopt_compression needs meshoptimizer, which this build lacks");
   }
@@ -188,7 +196,8 @@ Status DecodeMeshoptView(const json& ext, const std::vector<BufferSource>& buffe
   uint8_t* target = out.data() + *start;
   const uint8_t* stream = buffers[buffer].data + offset;
   if (mode == "ATTRIBUTES") {
-    if (stride % 4 != 0) return MakeError(StatusCode::kCorrupt, where, ": ATTRIBUTES byteStride ", stride, " is not a multiple of 4");
+    if (stride % 4 != 0)
+      return MakeError(StatusCode::kCorrupt, where, ": ATTRIBUTES byteStride ", stride, " is not a multiple of 4");
     Status s = DecompressAttributes(stream, length, count, stride, target);
     if (!s.ok()) return s.WithContext(where);
     s = DecodeFilter(filter, target, count, stride);
@@ -199,7 +208,8 @@ Status DecodeMeshoptView(const json& ext, const std::vector<BufferSource>& buffe
   if (mode == "TRIANGLES" || mode == "INDICES") {
     if (stride != 2 && stride != 4) return MakeError(StatusCode::kCorrupt, where, ": index byteStride ", stride);
     if (filter != MeshoptFilter::kNone) return MakeError(StatusCode::kCorrupt, where, ": index streams take no filter");
-    if (mode == "TRIANGLES" && count % 3 != 0) return MakeError(StatusCode::kCorrupt, where, ": TRIANGLES count ", count, " % 3 != 0");
+    if (mode == "TRIANGLES" && count % 3 != 0)
+      return MakeError(StatusCode::kCorrupt, where, ": TRIANGLES count ", count, " % 3 != 0");
     const int rc = mode == "TRIANGLES" ? meshopt_decodeIndexBuffer(target, count, stride, stream, length)
                                        : meshopt_decodeIndexSequence(target, count, stride, stream, length);
     if (rc != 0) return MakeError(StatusCode::kCorrupt, where, ": index stream does not decode (code ", rc, ")");
@@ -251,8 +261,8 @@ std::string PercentEncode(const std::string& text) {
   static const char* kHex = "0123456789ABCDEF";
   std::string out;
   for (unsigned char c : text) {
-    if ((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '-' || c == '_' || c == '.' ||
-        c == '~' || c == '/') {
+    if ((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '-' || c == '_' ||
+        c == '.' || c == '~' || c == '/') {
       out.push_back(char(c));
     } else {
       out.push_back('%');
@@ -297,10 +307,13 @@ StatusOr<NormalizedGltf> NormalizeGltf(const uint8_t* data, size_t size, const U
           if (comma == std::string::npos || text.substr(0, comma).find(";base64") == std::string::npos) {
             return MakeError(StatusCode::kUnsupported, where, ": only base64 data: URIs are supported");
           }
-          ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, Base64Decode(std::string_view(text).substr(comma + 1), where));
+          ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes,
+                                Base64Decode(std::string_view(text).substr(comma + 1), where));
           owned.push_back(std::move(bytes));
         } else {
-          if (!loader) return MakeError(StatusCode::kUnsupported, where, " refers to external file '", text, "'; read the file from disk instead");
+          if (!loader)
+            return MakeError(StatusCode::kUnsupported, where, " refers to external file '", text,
+                             "'; read the file from disk instead");
           ATEX_ASSIGN_OR_RETURN(std::string path, PercentDecode(text));
           auto bytes = loader(path, options.max_decoded_bytes);
           if (!bytes.ok()) return bytes.status().WithContext(where);
@@ -308,13 +321,14 @@ StatusOr<NormalizedGltf> NormalizeGltf(const uint8_t* data, size_t size, const U
           owned.push_back(std::move(bytes).value());
         }
         if (owned.back().size() < source.length) {
-          return MakeError(StatusCode::kTruncated, where, " has ", owned.back().size(), " bytes, byteLength says ", source.length);
+          return MakeError(StatusCode::kTruncated, where, " has ", owned.back().size(), " bytes, byteLength says ",
+                           source.length);
         }
         source.data = owned.back().data();
       } else if (container.glb && i == 0 && container.bin != nullptr) {
         if (source.length > container.bin_size) {
-          return MakeError(StatusCode::kTruncated, where, ".byteLength ", source.length, " exceeds the GLB binary chunk (",
-                           container.bin_size, " bytes)");
+          return MakeError(StatusCode::kTruncated, where, ".byteLength ", source.length,
+                           " exceeds the GLB binary chunk (", container.bin_size, " bytes)");
         }
         source.data = container.bin;
       } else {
@@ -323,7 +337,8 @@ StatusOr<NormalizedGltf> NormalizeGltf(const uint8_t* data, size_t size, const U
           if (auto m = e->find(kExtMeshopt); m != e->end()) ext = &*m;
         }
         if (ext == nullptr || !ext->is_object() || ext->value("fallback", false) != true) {
-          return MakeError(StatusCode::kCorrupt, where, " has no uri and is neither the GLB binary chunk nor a meshopt fallback");
+          return MakeError(StatusCode::kCorrupt, where,
+                           " has no uri and is neither the GLB binary chunk nor a meshopt fallback");
         }
       }
       buffers.push_back(source);
@@ -334,7 +349,8 @@ StatusOr<NormalizedGltf> NormalizeGltf(const uint8_t* data, size_t size, const U
   std::vector<uint8_t> bin;
   uint64_t plain_total = 0;
   for (const auto& b : buffers) plain_total += b.data ? Align4(b.length) : 0;
-  if (plain_total > options.max_decoded_bytes) return MakeError(StatusCode::kLimitExceeded, "glTF buffers hold ", plain_total, " bytes");
+  if (plain_total > options.max_decoded_bytes)
+    return MakeError(StatusCode::kLimitExceeded, "glTF buffers hold ", plain_total, " bytes");
   bin.reserve(plain_total);
   for (auto& b : buffers) {
     if (b.data == nullptr) continue;
@@ -342,7 +358,8 @@ StatusOr<NormalizedGltf> NormalizeGltf(const uint8_t* data, size_t size, const U
     b.base = bin.size();
     bin.insert(bin.end(), b.data, b.data + b.length);
   }
-  const uint64_t expansion_limit = std::min<uint64_t>(options.max_decoded_bytes, kMeshoptMaxExpansion * input_bytes + (1u << 20));
+  const uint64_t expansion_limit =
+      std::min<uint64_t>(options.max_decoded_bytes, kMeshoptMaxExpansion * input_bytes + (1u << 20));
   uint64_t decoded_total = 0;
   if (auto it = doc.find("bufferViews"); it != doc.end()) {
     if (!it->is_array()) return MakeError(StatusCode::kCorrupt, "'bufferViews' is not an array");
@@ -372,7 +389,8 @@ StatusOr<NormalizedGltf> NormalizeGltf(const uint8_t* data, size_t size, const U
       uint64_t buffer = 0, offset = 0;
       ATEX_RETURN_IF_ERROR(ReadSize(view, "buffer", true, 0, where, &buffer));
       ATEX_RETURN_IF_ERROR(ReadSize(view, "byteOffset", false, 0, where, &offset));
-      if (buffer >= buffers.size()) return MakeError(StatusCode::kCorrupt, where, ".buffer ", buffer, " does not exist");
+      if (buffer >= buffers.size())
+        return MakeError(StatusCode::kCorrupt, where, ".buffer ", buffer, " does not exist");
       if (buffers[buffer].data == nullptr) {
         return MakeError(StatusCode::kCorrupt, where, " reads fallback buffer ", buffer, ", which holds no data");
       }
@@ -398,7 +416,8 @@ StatusOr<NormalizedGltf> NormalizeGltf(const uint8_t* data, size_t size, const U
   std::string text = DumpJson(doc);
   text.resize(Align4(text.size()), ' ');
   const uint64_t total = 12 + 8 + text.size() + (bin.empty() ? 0 : 8 + bin.size());
-  if (total > UINT32_MAX) return MakeError(StatusCode::kLimitExceeded, "glTF of ", total, " bytes exceeds the 4 GiB GLB limit of the parser");
+  if (total > UINT32_MAX)
+    return MakeError(StatusCode::kLimitExceeded, "glTF of ", total, " bytes exceeds the 4 GiB GLB limit of the parser");
   std::vector<uint8_t>& glb = result.glb;
   glb.reserve(total);
   PutU32(glb, kGlbMagic);

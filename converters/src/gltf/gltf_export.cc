@@ -52,7 +52,8 @@ class SplatExporter {
   Status AddDeformation(const Gaussians& g, const DeformationField* field, json& attributes, json& khr_extensions);
   StatusOr<json> AddLinear(const Linear& layer, const std::string& where);
   Status Progress(double fraction) {
-    if (options_.progress && !options_.progress(fraction)) return MakeError(StatusCode::kCancelled, "glTF export cancelled");
+    if (options_.progress && !options_.progress(fraction))
+      return MakeError(StatusCode::kCancelled, "glTF export cancelled");
     return Status::Ok();
   }
   bool lossy() const { return options_.meshopt && options_.meshopt_float_bits > 0; }
@@ -88,7 +89,8 @@ StatusOr<int> SplatExporter::FloatView(const float* data, size_t count, size_t c
 StatusOr<int> SplatExporter::FloatAccessor(const std::vector<float>& data, size_t count, size_t components,
                                            const char* type, bool vertex, bool lossy, bool min_max) {
   std::vector<float> decoded;
-  ATEX_ASSIGN_OR_RETURN(int view, FloatView(data.data(), count, components, vertex, lossy, min_max ? &decoded : nullptr));
+  ATEX_ASSIGN_OR_RETURN(int view,
+                        FloatView(data.data(), count, components, vertex, lossy, min_max ? &decoded : nullptr));
   json min = nullptr, max = nullptr;
   if (min_max) {
     std::vector<float> lo(components, std::numeric_limits<float>::infinity());
@@ -120,16 +122,19 @@ Status SplatExporter::AddBase(const Gaussians& g, json& attributes) {
   std::vector<float> xyzw(n * 4);  // [N][4]
   for (size_t i = 0; i < n; ++i) {
     const float* q = &g.rotations[i * 4];  // (w, x, y, z)
-    const double norm = std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
+    const double norm =
+        std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
     float* out = &xyzw[i * 4];
     if (norm > 0) {
-      out[0] = float(q[1] / norm), out[1] = float(q[2] / norm), out[2] = float(q[3] / norm), out[3] = float(q[0] / norm);
+      out[0] = float(q[1] / norm), out[1] = float(q[2] / norm), out[2] = float(q[3] / norm),
+      out[3] = float(q[0] / norm);
     } else {
       out[0] = 0, out[1] = 0, out[2] = 0, out[3] = 1;
     }
   }
   if (options_.meshopt) {
-    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> packed, gltf::EncodeQuaternion(xyzw.data(), n, options_.meshopt_rotation_bits));
+    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> packed,
+                          gltf::EncodeQuaternion(xyzw.data(), n, options_.meshopt_rotation_bits));
     gltf::ViewSpec spec{packed.data(), n, 8, true, MeshoptFilter::kQuaternion};
     ATEX_ASSIGN_OR_RETURN(int view, writer_.AddView(spec));
     attributes[gltf::kAttrRotation] = writer_.AddAccessor(view, 0, gltf::kComponentShort, true, n, "VEC4");
@@ -189,7 +194,8 @@ Status SplatExporter::AddTextures(const TexturePool& t, size_t n, json& attribut
     layout[i * 4 + 3] = t.axis_v[i];
   }
   ATEX_ASSIGN_OR_RETURN(int layout_view, writer_.AddView({layout.data(), n, 4, true, MeshoptFilter::kNone}));
-  attributes[gltf::kAttrTextureLayout] = writer_.AddAccessor(layout_view, 0, gltf::kComponentUnsignedByte, false, n, "VEC4");
+  attributes[gltf::kAttrTextureLayout] =
+      writer_.AddAccessor(layout_view, 0, gltf::kComponentUnsignedByte, false, n, "VEC4");
 
   const size_t texels = t.texel_count();
   ATEX_ASSIGN_OR_RETURN(int texel_accessor, FloatAccessor(t.texels, texels, 4, "VEC4", false, lossy(), false));
@@ -205,7 +211,8 @@ StatusOr<json> SplatExporter::AddLinear(const Linear& layer, const std::string& 
       layer.in <= 0) {
     return MakeError(StatusCode::kInvalidArgument, where, " has inconsistent shapes (", layer.out, "x", layer.in, ")");
   }
-  ATEX_ASSIGN_OR_RETURN(int weight, FloatAccessor(layer.weight, layer.weight.size(), 1, "SCALAR", false, lossy(), false));
+  ATEX_ASSIGN_OR_RETURN(int weight,
+                        FloatAccessor(layer.weight, layer.weight.size(), 1, "SCALAR", false, lossy(), false));
   ATEX_ASSIGN_OR_RETURN(int bias, FloatAccessor(layer.bias, layer.bias.size(), 1, "SCALAR", false, lossy(), false));
   return json{{"weight", weight}, {"bias", bias}};
 }
@@ -255,7 +262,8 @@ Status SplatExporter::AddDeformation(const Gaussians& g, const DeformationField*
       if (!c.heads[h]) continue;
       json layers = json::array();
       for (int k = 0; k < 2; ++k) {
-        ATEX_ASSIGN_OR_RETURN(json layer, AddLinear(field->heads[h][k], StrCat(gltf::kHeadNames[h], " head layer ", k)));
+        ATEX_ASSIGN_OR_RETURN(json layer,
+                              AddLinear(field->heads[h][k], StrCat(gltf::kHeadNames[h], " head layer ", k)));
         layers.push_back(layer);
       }
       heads[gltf::kHeadNames[h]] = layers;
@@ -282,7 +290,9 @@ Status SplatExporter::AddDeformation(const Gaussians& g, const DeformationField*
 Status SplatExporter::Build(const Asset& asset) {
   ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
   const size_t n = asset.gaussians.size();
-  if (n == 0) return MakeError(StatusCode::kInvalidArgument, "glTF export: the asset has no Gaussians (glTF accessors need count >= 1)");
+  if (n == 0)
+    return MakeError(StatusCode::kInvalidArgument,
+                     "glTF export: the asset has no Gaussians (glTF accessors need count >= 1)");
   if (n > UINT32_MAX) return MakeError(StatusCode::kLimitExceeded, "glTF export: ", n, " Gaussians exceed 2^32");
   if (options_.meshopt && !gltf::MeshoptAvailable()) {
     return MakeError(StatusCode::kUnsupported, "EXT_meshopt_compression needs meshoptimizer, which this build lacks");
@@ -300,13 +310,15 @@ Status SplatExporter::Build(const Asset& asset) {
   Gaussians deformed;
   if (options_.time) {
     if (!std::isfinite(*options_.time)) return MakeError(StatusCode::kOutOfRange, "glTF export: time is not finite");
-    if (!asset.deformation) return MakeError(StatusCode::kInvalidArgument, "glTF export: --time needs an asset with a deformation field");
+    if (!asset.deformation)
+      return MakeError(StatusCode::kInvalidArgument, "glTF export: --time needs an asset with a deformation field");
     if (options_.deform) {
       ATEX_RETURN_IF_ERROR(options_.deform(asset, *options_.time, &deformed));
     } else {
       ATEX_RETURN_IF_ERROR(DeformForward(*asset.deformation, asset.gaussians, *options_.time, &deformed, nullptr));
     }
-    if (deformed.size() != n) return MakeError(StatusCode::kInternal, "deformation returned ", deformed.size(), " Gaussians, expected ", n);
+    if (deformed.size() != n)
+      return MakeError(StatusCode::kInternal, "deformation returned ", deformed.size(), " Gaussians, expected ", n);
     shown = &deformed;
   }
   ATEX_RETURN_IF_ERROR(Progress(0.2));
@@ -315,8 +327,10 @@ Status SplatExporter::Build(const Asset& asset) {
   json khr_extensions = json::object();
   ATEX_RETURN_IF_ERROR(AddBase(*shown, attributes));
   ATEX_RETURN_IF_ERROR(Progress(0.6));
-  if (options_.textures && asset.textures) ATEX_RETURN_IF_ERROR(AddTextures(*asset.textures, n, attributes, khr_extensions));
-  const DeformationField* field = (options_.deformation && !options_.time && asset.deformation) ? &*asset.deformation : nullptr;
+  if (options_.textures && asset.textures)
+    ATEX_RETURN_IF_ERROR(AddTextures(*asset.textures, n, attributes, khr_extensions));
+  const DeformationField* field =
+      (options_.deformation && !options_.time && asset.deformation) ? &*asset.deformation : nullptr;
   ATEX_RETURN_IF_ERROR(AddDeformation(*shown, field, attributes, khr_extensions));
   ATEX_RETURN_IF_ERROR(Progress(0.9));
 
@@ -325,7 +339,8 @@ Status SplatExporter::Build(const Asset& asset) {
               {"projection", "perspective"},
               {"sortingMethod", "cameraDistance"}};
   if (!khr_extensions.empty()) khr["extensions"] = khr_extensions;
-  json primitive = {{"mode", gltf::kModePoints}, {"attributes", attributes}, {"extensions", {{gltf::kKhrGaussianSplatting, khr}}}};
+  json primitive = {
+      {"mode", gltf::kModePoints}, {"attributes", attributes}, {"extensions", {{gltf::kKhrGaussianSplatting, khr}}}};
   writer_.UseExtension(gltf::kKhrGaussianSplatting, false);
 
   json& doc = writer_.doc();
@@ -361,7 +376,8 @@ StatusOr<std::vector<uint8_t>> EncodeGlb(const Asset& asset, const GltfExportOpt
   }
 }
 
-StatusOr<GltfTextFiles> EncodeGltfText(const Asset& asset, const std::string& bin_uri, const GltfExportOptions& options) {
+StatusOr<GltfTextFiles> EncodeGltfText(const Asset& asset, const std::string& bin_uri,
+                                       const GltfExportOptions& options) {
   try {
     SplatExporter exporter(options);
     ATEX_RETURN_IF_ERROR(exporter.Build(asset));

@@ -49,7 +49,8 @@ TEST(GltfExport, BaseAttributesFollowKhrGaussianSplatting) {
     EXPECT_NEAR(rot[i * 4 + 1], q[2] / norm, 1e-6);
     EXPECT_NEAR(rot[i * 4 + 2], q[3] / norm, 1e-6);
     EXPECT_NEAR(rot[i * 4 + 3], q[0] / norm, 1e-6);
-    for (int k = 0; k < 3; ++k) EXPECT_NEAR(scale[i * 3 + k], std::exp(g.log_scales[i * 3 + k]), 1e-6 * scale[i * 3 + k]);
+    for (int k = 0; k < 3; ++k)
+      EXPECT_NEAR(scale[i * 3 + k], std::exp(g.log_scales[i * 3 + k]), 1e-6 * scale[i * 3 + k]);
     EXPECT_NEAR(opacity[i], 1.0 / (1.0 + std::exp(-g.opacity_logits[i])), 1e-6);
     EXPECT_GE(opacity[i], 0.0f);
     EXPECT_LE(opacity[i], 1.0f);

@@ -101,13 +101,16 @@ TEST(GltfHostile, ForgedAccessorsAndViews) {
             StatusCode::kCorrupt);
   EXPECT_EQ(DecodeEdited([](json& d) { d["accessors"][AttributeAccessor(d, "POSITION")]["type"] = "VEC2"; }),
             StatusCode::kCorrupt);
-  EXPECT_EQ(DecodeEdited([](json& d) { d["accessors"][AttributeAccessor(d, "KHR_gaussian_splatting:OPACITY")]["count"] = 3; }),
+  EXPECT_EQ(DecodeEdited(
+                [](json& d) { d["accessors"][AttributeAccessor(d, "KHR_gaussian_splatting:OPACITY")]["count"] = 3; }),
             StatusCode::kCorrupt);
   EXPECT_EQ(DecodeEdited([](json& d) { d["meshes"][0]["primitives"][0]["mode"] = 4; }), StatusCode::kCorrupt);
-  EXPECT_EQ(DecodeEdited([](json& d) { d["meshes"][0]["primitives"][0]["attributes"].erase("KHR_gaussian_splatting:SCALE"); }),
+  EXPECT_EQ(DecodeEdited(
+                [](json& d) { d["meshes"][0]["primitives"][0]["attributes"].erase("KHR_gaussian_splatting:SCALE"); }),
             StatusCode::kCorrupt);
-  EXPECT_EQ(DecodeEdited([](json& d) { d["meshes"][0]["primitives"][0]["extensions"].erase("KHR_gaussian_splatting"); }),
-            StatusCode::kUnsupported);
+  EXPECT_EQ(
+      DecodeEdited([](json& d) { d["meshes"][0]["primitives"][0]["extensions"].erase("KHR_gaussian_splatting"); }),
+      StatusCode::kUnsupported);
   EXPECT_EQ(DecodeEdited([](json& d) { d["nodes"][0]["children"] = {0}; }), StatusCode::kCorrupt);  // cycle
   EXPECT_EQ(DecodeEdited([](json& d) { d["extras"]["atex"]["version"] = 99; }), StatusCode::kUnsupportedVersion);
   EXPECT_EQ(DecodeEdited([](json& d) { d["extras"]["atex"]["metadata"]["time_min"] = "soon"; }), StatusCode::kCorrupt);
@@ -118,14 +121,16 @@ TEST(GltfHostile, ForgedExtensionPayloads) {
     return d["meshes"][0]["primitives"][0]["extensions"]["KHR_gaussian_splatting"]["extensions"];
   };
   EXPECT_EQ(DecodeEdited([&](json& d) { sub(d)["ATEX_gaussian_textures"]["texels"] = 12345; }), StatusCode::kCorrupt);
-  EXPECT_EQ(DecodeEdited([&](json& d) { sub(d)["ATEX_gaussian_textures"]["texels"] = AttributeAccessor(d, "POSITION"); }),
-            StatusCode::kCorrupt);
+  EXPECT_EQ(
+      DecodeEdited([&](json& d) { sub(d)["ATEX_gaussian_textures"]["texels"] = AttributeAccessor(d, "POSITION"); }),
+      StatusCode::kCorrupt);
   EXPECT_EQ(DecodeEdited([&](json& d) { sub(d)["ATEX_gaussian_deformation"]["field"]["grid"]["channels"] = 1 << 30; }),
             StatusCode::kOutOfRange);
   EXPECT_EQ(DecodeEdited([&](json& d) { sub(d)["ATEX_gaussian_deformation"]["field"]["grid"]["channels"] = 4; }),
             StatusCode::kCorrupt);  // plane accessors no longer match C*res*res
-  EXPECT_EQ(DecodeEdited([&](json& d) { sub(d)["ATEX_gaussian_deformation"]["field"]["heads"]["wings"] = json::array(); }),
-            StatusCode::kCorrupt);
+  EXPECT_EQ(
+      DecodeEdited([&](json& d) { sub(d)["ATEX_gaussian_deformation"]["field"]["heads"]["wings"] = json::array(); }),
+      StatusCode::kCorrupt);
   EXPECT_EQ(DecodeEdited([&](json& d) { sub(d)["ATEX_gaussian_deformation"]["field"]["trunk"] = json::array(); }),
             StatusCode::kCorrupt);
 }
@@ -154,7 +159,8 @@ TEST(GltfHostile, BadValuesInTheBinaryData) {
 TEST(GltfHostile, ExternalUrisStayInTheFolder) {
   atex::testing::TempDir dir;
   GlbParts parts = testing::SplitGlb(ValidGlb());
-  for (const char* uri : {"../secret.bin", "/etc/passwd", "file:///etc/passwd", "http://example.com/x.bin", "missing.bin"}) {
+  for (const char* uri :
+       {"../secret.bin", "/etc/passwd", "file:///etc/passwd", "http://example.com/x.bin", "missing.bin"}) {
     json doc = parts.json;
     doc["buffers"][0]["uri"] = uri;
     const std::string text = doc.dump();

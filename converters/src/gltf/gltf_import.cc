@@ -57,7 +57,8 @@ const std::initializer_list<int> kOpacityTypes = {gltf::kComponentFloat, gltf::k
 StatusOr<Gaussians> ReadBase(const tinygltf::Model& model, const tinygltf::Primitive& primitive,
                              const GltfImportOptions& options) {
   if (primitive.mode != gltf::kModePoints) {
-    return MakeError(StatusCode::kCorrupt, "splat primitive has mode ", primitive.mode, ", KHR_gaussian_splatting needs POINTS (0)");
+    return MakeError(StatusCode::kCorrupt, "splat primitive has mode ", primitive.mode,
+                     ", KHR_gaussian_splatting needs POINTS (0)");
   }
   Gaussians g;
   std::vector<float> positions;
@@ -66,7 +67,8 @@ StatusOr<Gaussians> ReadBase(const tinygltf::Model& model, const tinygltf::Primi
                                       gltf::kComponentShort, gltf::kComponentUnsignedShort},
                                      0, &positions));
   const size_t n = positions.size() / 3;
-  if (n > options.max_gaussians) return MakeError(StatusCode::kLimitExceeded, n, " Gaussians exceed the limit of ", options.max_gaussians);
+  if (n > options.max_gaussians)
+    return MakeError(StatusCode::kLimitExceeded, n, " Gaussians exceed the limit of ", options.max_gaussians);
   g.positions = std::move(positions);
 
   std::vector<float> xyzw, scales, opacities;
@@ -83,8 +85,8 @@ StatusOr<Gaussians> ReadBase(const tinygltf::Model& model, const tinygltf::Primi
   g.log_scales.resize(n * 3);
   for (size_t i = 0; i < n * 3; ++i) {
     if (!(scales[i] >= 0)) {
-      return MakeError(StatusCode::kOutOfRange, "attribute ", gltf::kAttrScale, " element ", i / 3, " component ", i % 3, " is ",
-                       scales[i], " (scales must be positive)");
+      return MakeError(StatusCode::kOutOfRange, "attribute ", gltf::kAttrScale, " element ", i / 3, " component ",
+                       i % 3, " is ", scales[i], " (scales must be positive)");
     }
     // A zero scale (flat splats of some tools) becomes the smallest normal float's log.
     g.log_scales[i] = float(std::log(std::max(double(scales[i]), double(std::numeric_limits<float>::min()))));
@@ -150,14 +152,15 @@ Status BakeTransform(const gltf::Mat4& m, Gaussians& g) {
   }
   const double s = scale[0];
   if (!(s > 0) || std::abs(scale[1] - s) > 1e-6 * s || std::abs(scale[2] - s) > 1e-6 * s) {
-    return MakeError(StatusCode::kUnsupported, "node transform has a non-uniform or zero scale (", scale[0], ", ", scale[1], ", ",
-                     scale[2], ")");
+    return MakeError(StatusCode::kUnsupported, "node transform has a non-uniform or zero scale (", scale[0], ", ",
+                     scale[1], ", ", scale[2], ")");
   }
   std::array<double, 9> r;  // row-major rotation
   for (int row = 0; row < 3; ++row) {
     for (int c = 0; c < 3; ++c) r[row * 3 + c] = col[c][row] / s;
   }
-  const double det = r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6]) + r[2] * (r[3] * r[7] - r[4] * r[6]);
+  const double det =
+      r[0] * (r[4] * r[8] - r[5] * r[7]) - r[1] * (r[3] * r[8] - r[5] * r[6]) + r[2] * (r[3] * r[7] - r[4] * r[6]);
   if (det < 0) return MakeError(StatusCode::kUnsupported, "node transform mirrors (negative determinant)");
   // Rotation matrix -> quaternion (w, x, y, z).
   double qw, qx, qy, qz;
@@ -273,7 +276,8 @@ const json* FindPath(const json& root, std::initializer_list<const char*> keys) 
 
 StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, const GltfImportOptions& options) {
   ATEX_ASSIGN_OR_RETURN(std::vector<gltf::SplatPrimitive> splats, gltf::FindSplatPrimitives(model, doc));
-  if (splats.empty()) return MakeError(StatusCode::kUnsupported, "no KHR_gaussian_splatting primitive in the default scene");
+  if (splats.empty())
+    return MakeError(StatusCode::kUnsupported, "no KHR_gaussian_splatting primitive in the default scene");
   const json* atex = FindPath(doc, {"extras", "atex"});
   Asset asset;
   if (atex == nullptr) {
@@ -299,13 +303,16 @@ StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, cons
 
   // Ours: one primitive, data in asset coordinates (the node only turns it upright).
   if (!atex->is_object()) return MakeError(StatusCode::kCorrupt, "extras.atex is not an object");
-  if (splats.size() != 1) return MakeError(StatusCode::kCorrupt, "an atex glTF has one splat primitive, this one has ", splats.size());
+  if (splats.size() != 1)
+    return MakeError(StatusCode::kCorrupt, "an atex glTF has one splat primitive, this one has ", splats.size());
   int64_t version = 0;
-  if (auto v = atex->find("version"); v == atex->end() || !gltf::ReadIntValue(*v, "extras.atex.version", 1, INT32_MAX, &version).ok()) {
+  if (auto v = atex->find("version");
+      v == atex->end() || !gltf::ReadIntValue(*v, "extras.atex.version", 1, INT32_MAX, &version).ok()) {
     return MakeError(StatusCode::kCorrupt, "extras.atex.version is missing or invalid");
   }
   if (version > gltf::kAtexGltfVersion) {
-    return MakeError(StatusCode::kUnsupportedVersion, "extras.atex.version ", version, " is newer than this reader (", gltf::kAtexGltfVersion, ")");
+    return MakeError(StatusCode::kUnsupportedVersion, "extras.atex.version ", version, " is newer than this reader (",
+                     gltf::kAtexGltfVersion, ")");
   }
   const auto& sp = splats[0];
   const tinygltf::Primitive& primitive = model.meshes[sp.mesh].primitives[sp.primitive];
@@ -336,7 +343,8 @@ StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, cons
   return asset;
 }
 
-bool NoImageLoading(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*) {
+bool NoImageLoading(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int,
+                    void*) {
   return true;  // splat data has no images; never decode hostile image bytes
 }
 bool DenyFileExists(const std::string&, void*) { return false; }

@@ -27,7 +27,8 @@ Status ReadFloatArray(const tinygltf::Model& model, const json& object, const ch
   return ReadFloats(a, name, out);
 }
 
-Status ReadLinear(const tinygltf::Model& model, const json& layer, int in, int out, const std::string& where, Linear* l) {
+Status ReadLinear(const tinygltf::Model& model, const json& layer, int in, int out, const std::string& where,
+                  Linear* l) {
   if (!layer.is_object()) return MakeError(StatusCode::kCorrupt, where, " is not an object");
   l->in = in;
   l->out = out;
@@ -42,7 +43,8 @@ StatusOr<TexturePool> ReadTextures(const tinygltf::Model& model, const tinygltf:
   const std::string where = kAtexTextures;
   if (!ext.is_object()) return MakeError(StatusCode::kCorrupt, where, " is not an object");
   auto it = primitive.attributes.find(kAttrTextureLayout);
-  if (it == primitive.attributes.end()) return MakeError(StatusCode::kCorrupt, where, ": attribute ", kAttrTextureLayout, " is missing");
+  if (it == primitive.attributes.end())
+    return MakeError(StatusCode::kCorrupt, where, ": attribute ", kAttrTextureLayout, " is missing");
   ATEX_ASSIGN_OR_RETURN(AccessorData layout_accessor, ResolveAccessor(model, it->second, kAttrTextureLayout));
   ATEX_RETURN_IF_ERROR(CheckAccessor(layout_accessor, 4, {kComponentUnsignedByte}, n, kAttrTextureLayout));
   std::vector<uint8_t> layout;
@@ -55,9 +57,11 @@ StatusOr<TexturePool> ReadTextures(const tinygltf::Model& model, const tinygltf:
     t.axis_u[i] = layout[i * 4 + 2];
     t.axis_v[i] = layout[i * 4 + 3];
     auto side_ok = [](uint8_t s) { return s == 1 || s == 2 || s == 4; };
-    if (!side_ok(t.heights[i]) || !side_ok(t.widths[i]) || t.axis_u[i] > 2 || t.axis_v[i] > 2 || t.axis_u[i] == t.axis_v[i]) {
+    if (!side_ok(t.heights[i]) || !side_ok(t.widths[i]) || t.axis_u[i] > 2 || t.axis_v[i] > 2 ||
+        t.axis_u[i] == t.axis_v[i]) {
       return MakeError(StatusCode::kOutOfRange, kAttrTextureLayout, " element ", i, " = (", int(t.heights[i]), ", ",
-                       int(t.widths[i]), ", ", int(t.axis_u[i]), ", ", int(t.axis_v[i]), ") is not a valid texture layout");
+                       int(t.widths[i]), ", ", int(t.axis_u[i]), ", ", int(t.axis_v[i]),
+                       ") is not a valid texture layout");
     }
   }
   t.RebuildOffsets();
@@ -82,7 +86,8 @@ StatusOr<DeformationField> ReadField(const tinygltf::Model& model, const json& f
   auto read_vec3 = [&](const char* key, std::array<float, 3>* out) -> Status {
     ATEX_ASSIGN_OR_RETURN(const json* v, need(f, key, where));
     if (!v->is_array() || v->size() != 3) return MakeError(StatusCode::kCorrupt, where, ".", key, " is not 3 numbers");
-    for (size_t i = 0; i < 3; ++i) ATEX_RETURN_IF_ERROR(ReadFloatValue((*v)[i], StrCat(where, ".", key, "[", i, "]"), &(*out)[i]));
+    for (size_t i = 0; i < 3; ++i)
+      ATEX_RETURN_IF_ERROR(ReadFloatValue((*v)[i], StrCat(where, ".", key, "[", i, "]"), &(*out)[i]));
     return Status::Ok();
   };
   ATEX_RETURN_IF_ERROR(read_vec3("aabbLo", &c.aabb_lo));
@@ -107,7 +112,8 @@ StatusOr<DeformationField> ReadField(const tinygltf::Model& model, const json& f
   ATEX_RETURN_IF_ERROR(ReadIntValue(*channels, gw + ".channels", 1, kMaxDim, &v));
   c.grid.channels = int(v);
   ATEX_ASSIGN_OR_RETURN(const json* base, need(*grid, "baseResolution", gw));
-  if (!base->is_array() || base->size() != 4) return MakeError(StatusCode::kCorrupt, gw, ".baseResolution is not 4 integers");
+  if (!base->is_array() || base->size() != 4)
+    return MakeError(StatusCode::kCorrupt, gw, ".baseResolution is not 4 integers");
   for (size_t i = 0; i < 4; ++i) {
     ATEX_RETURN_IF_ERROR(ReadIntValue((*base)[i], StrCat(gw, ".baseResolution[", i, "]"), 1, kMaxDim, &v));
     c.grid.base_resolution[i] = int(v);
@@ -122,7 +128,8 @@ StatusOr<DeformationField> ReadField(const tinygltf::Model& model, const json& f
     c.grid.multires.push_back(int(v));
   }
   ATEX_ASSIGN_OR_RETURN(const json* trunk, need(f, "trunk", where));
-  if (!trunk->is_array() || trunk->empty() || trunk->size() > 64) return MakeError(StatusCode::kCorrupt, where, ".trunk is not an array of 1..64 layers");
+  if (!trunk->is_array() || trunk->empty() || trunk->size() > 64)
+    return MakeError(StatusCode::kCorrupt, where, ".trunk is not an array of 1..64 layers");
   c.trunk_layers = int(trunk->size());
   ATEX_ASSIGN_OR_RETURN(const json* heads, need(f, "heads", where));
   if (!heads->is_object()) return MakeError(StatusCode::kCorrupt, where, ".heads is not an object");
@@ -137,7 +144,8 @@ StatusOr<DeformationField> ReadField(const tinygltf::Model& model, const json& f
 
   ATEX_ASSIGN_OR_RETURN(const json* planes, need(*grid, "planes", gw));
   if (!planes->is_array() || planes->size() != c.grid.multires.size()) {
-    return MakeError(StatusCode::kCorrupt, gw, ".planes needs one entry per multires scale (", c.grid.multires.size(), ")");
+    return MakeError(StatusCode::kCorrupt, gw, ".planes needs one entry per multires scale (", c.grid.multires.size(),
+                     ")");
   }
   field.planes.resize(c.grid.multires.size());
   for (size_t s = 0; s < planes->size(); ++s) {
@@ -147,15 +155,18 @@ StatusOr<DeformationField> ReadField(const tinygltf::Model& model, const json& f
     }
     for (int p = 0; p < kNumHexPlanes; ++p) {
       const auto [a, b] = kHexPlaneAxes[size_t(p)];
-      const size_t size = size_t(c.grid.channels) * size_t(c.grid.resolution(int(s), b)) * size_t(c.grid.resolution(int(s), a));
+      const size_t size =
+          size_t(c.grid.channels) * size_t(c.grid.resolution(int(s), b)) * size_t(c.grid.resolution(int(s), a));
       json holder = {{"plane", scale[size_t(p)]}};
-      ATEX_RETURN_IF_ERROR(ReadFloatArray(model, holder, "plane", size, StrCat(gw, ".planes[", s, "][", p, "]"), &field.planes[s][size_t(p)]));
+      ATEX_RETURN_IF_ERROR(ReadFloatArray(model, holder, "plane", size, StrCat(gw, ".planes[", s, "][", p, "]"),
+                                          &field.planes[s][size_t(p)]));
     }
   }
   const int feat = c.grid.feature_dim(), w = c.mlp_width;
   field.trunk.resize(trunk->size());
   for (size_t l = 0; l < trunk->size(); ++l) {
-    ATEX_RETURN_IF_ERROR(ReadLinear(model, (*trunk)[l], l == 0 ? feat : w, w, StrCat(where, ".trunk[", l, "]"), &field.trunk[l]));
+    ATEX_RETURN_IF_ERROR(
+        ReadLinear(model, (*trunk)[l], l == 0 ? feat : w, w, StrCat(where, ".trunk[", l, "]"), &field.trunk[l]));
   }
   for (int h = 0; h < kNumDeformHeads; ++h) {
     if (!c.heads[h]) continue;

@@ -39,7 +39,8 @@ StatusOr<Mat4> NodeMatrix(const tinygltf::Node& node, size_t index) {
     std::copy(node.matrix.begin(), node.matrix.end(), m.begin());
     return m;
   }
-  if (!node.matrix.empty()) return MakeError(StatusCode::kCorrupt, where, ".matrix has ", node.matrix.size(), " values");
+  if (!node.matrix.empty())
+    return MakeError(StatusCode::kCorrupt, where, ".matrix has ", node.matrix.size(), " values");
   double t[3] = {0, 0, 0}, q[4] = {0, 0, 0, 1}, s[3] = {1, 1, 1};
   if (!node.translation.empty()) {
     if (node.translation.size() != 3) return MakeError(StatusCode::kCorrupt, where, ".translation is not 3 numbers");
@@ -84,7 +85,8 @@ StatusOr<std::vector<SplatPrimitive>> FindSplatPrimitives(const tinygltf::Model&
   std::vector<int> roots;
   if (!model.scenes.empty()) {
     int scene = model.defaultScene >= 0 ? model.defaultScene : 0;
-    if (size_t(scene) >= model.scenes.size()) return MakeError(StatusCode::kCorrupt, "'scene' ", scene, " does not exist");
+    if (size_t(scene) >= model.scenes.size())
+      return MakeError(StatusCode::kCorrupt, "'scene' ", scene, " does not exist");
     roots = model.scenes[size_t(scene)].nodes;
   } else {
     std::vector<bool> is_child(model.nodes.size(), false);
@@ -104,14 +106,17 @@ StatusOr<std::vector<SplatPrimitive>> FindSplatPrimitives(const tinygltf::Model&
   while (!stack.empty()) {
     auto [index, parent] = stack.back();
     stack.pop_back();
-    if (index < 0 || size_t(index) >= model.nodes.size()) return MakeError(StatusCode::kCorrupt, "node index ", index, " does not exist");
-    if (visited[size_t(index)]) return MakeError(StatusCode::kCorrupt, "nodes[", index, "] is reached twice (cycle or shared node)");
+    if (index < 0 || size_t(index) >= model.nodes.size())
+      return MakeError(StatusCode::kCorrupt, "node index ", index, " does not exist");
+    if (visited[size_t(index)])
+      return MakeError(StatusCode::kCorrupt, "nodes[", index, "] is reached twice (cycle or shared node)");
     visited[size_t(index)] = true;
     const tinygltf::Node& node = model.nodes[size_t(index)];
     ATEX_ASSIGN_OR_RETURN(Mat4 local, NodeMatrix(node, size_t(index)));
     const Mat4 world = Multiply(parent, local);
     if (node.mesh >= 0) {
-      if (size_t(node.mesh) >= model.meshes.size()) return MakeError(StatusCode::kCorrupt, "nodes[", index, "].mesh ", node.mesh, " does not exist");
+      if (size_t(node.mesh) >= model.meshes.size())
+        return MakeError(StatusCode::kCorrupt, "nodes[", index, "].mesh ", node.mesh, " does not exist");
       const auto& mesh = model.meshes[size_t(node.mesh)];
       for (size_t p = 0; p < mesh.primitives.size(); ++p) {
         if (is_splat(size_t(node.mesh), p)) found.push_back({size_t(node.mesh), p, world});

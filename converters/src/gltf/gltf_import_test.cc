@@ -173,7 +173,8 @@ TEST(GltfImport, MeshoptLossyStaysWithinTheFilterPrecision) {
   // shares it between the components): error <= 2^-(bits-1) of the element's largest component.
   const double rel = std::ldexp(1.0, -13);
   for (size_t i = 0; i < a.size(); ++i) {
-    const double largest = std::max({std::abs(a.positions[i * 3]), std::abs(a.positions[i * 3 + 1]), std::abs(a.positions[i * 3 + 2])});
+    const double largest =
+        std::max({std::abs(a.positions[i * 3]), std::abs(a.positions[i * 3 + 1]), std::abs(a.positions[i * 3 + 2])});
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(b.positions[i * 3 + k], a.positions[i * 3 + k], rel * largest) << i;
   }
   for (size_t i = 0; i < a.size(); ++i) {
@@ -225,10 +226,15 @@ std::vector<uint8_t> ForeignGlb(const std::vector<float>& node_rotation_xyzw) {
       {"buffers", {{{"byteLength", bin.size()}}}},
       {"bufferViews", views},
       {"accessors", accessors},
-      {"meshes", {{{"primitives", {{{"mode", 0}, {"attributes", attributes},
-                                    {"extensions", {{"KHR_gaussian_splatting", {{"kernel", "ellipse"}, {"colorSpace", "lin_rec709_display"}}}}}}}}}}},
-      {"nodes", {{{"children", {1}}, {"translation", {10, 0, 0}}},
-                 {{"mesh", 0}, {"rotation", node_rotation_xyzw}, {"scale", {2, 2, 2}}}}},
+      {"meshes",
+       {{{"primitives",
+          {{{"mode", 0},
+            {"attributes", attributes},
+            {"extensions",
+             {{"KHR_gaussian_splatting", {{"kernel", "ellipse"}, {"colorSpace", "lin_rec709_display"}}}}}}}}}}},
+      {"nodes",
+       {{{"children", {1}}, {"translation", {10, 0, 0}}},
+        {{"mesh", 0}, {"rotation", node_rotation_xyzw}, {"scale", {2, 2, 2}}}}},
       {"scenes", {{{"nodes", {0}}}}},
       {"scene", 0}};
   return testing::JoinGlb(doc, bin);
@@ -267,7 +273,8 @@ TEST(GltfImport, ForeignFileBakesTheNodeTransform) {
   const double rd[3] = {d[2], d[1], -d[0]};  // R_y(90) d
   for (int ch = 0; ch < 3; ++ch) {
     const double before = -c1 * d[1] * sh1_orig[0][ch] + c1 * d[2] * sh1_orig[1][ch] - c1 * d[0] * sh1_orig[2][ch];
-    const double after = -c1 * rd[1] * g.sh[(1) * 3 + ch] + c1 * rd[2] * g.sh[(2) * 3 + ch] - c1 * rd[0] * g.sh[(3) * 3 + ch];
+    const double after =
+        -c1 * rd[1] * g.sh[(1) * 3 + ch] + c1 * rd[2] * g.sh[(2) * 3 + ch] - c1 * rd[0] * g.sh[(3) * 3 + ch];
     EXPECT_NEAR(after, before, 1e-6) << "channel " << ch;
   }
   EXPECT_EQ(g.sh[0], 0.1f);  // DC is rotation invariant

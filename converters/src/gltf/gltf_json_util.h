@@ -34,7 +34,8 @@ inline Status ReadIndex(const nlohmann::json& object, const char* key, uint64_t 
     return MakeError(StatusCode::kCorrupt, where, ".", key, " is not a non-negative integer");
   }
   const uint64_t value = it->get<uint64_t>();
-  if (value >= limit) return MakeError(StatusCode::kCorrupt, where, ".", key, " = ", value, " is out of range (", limit, ")");
+  if (value >= limit)
+    return MakeError(StatusCode::kCorrupt, where, ".", key, " = ", value, " is out of range (", limit, ")");
   *out = value;
   return Status::Ok();
 }
@@ -44,15 +45,18 @@ inline Status ReadFloatValue(const nlohmann::json& value, const std::string& whe
   if (!value.is_number()) return MakeError(StatusCode::kCorrupt, where, " is not a number");
   const double d = value.get<double>();
   const float f = static_cast<float>(d);
-  if (!std::isfinite(d) || !std::isfinite(f)) return MakeError(StatusCode::kOutOfRange, where, " = ", d, " is not a finite float");
+  if (!std::isfinite(d) || !std::isfinite(f))
+    return MakeError(StatusCode::kOutOfRange, where, " = ", d, " is not a finite float");
   *out = f;
   return Status::Ok();
 }
 
 // Reads an integer in [lo, hi].
-inline Status ReadIntValue(const nlohmann::json& value, const std::string& where, int64_t lo, int64_t hi, int64_t* out) {
+inline Status ReadIntValue(const nlohmann::json& value, const std::string& where, int64_t lo, int64_t hi,
+                           int64_t* out) {
   if (!value.is_number_integer()) return MakeError(StatusCode::kCorrupt, where, " is not an integer");
-  const int64_t v = value.is_number_unsigned() && value.get<uint64_t>() > uint64_t(INT64_MAX) ? INT64_MAX : value.get<int64_t>();
+  const int64_t v =
+      value.is_number_unsigned() && value.get<uint64_t>() > uint64_t(INT64_MAX) ? INT64_MAX : value.get<int64_t>();
   if (v < lo || v > hi) return MakeError(StatusCode::kOutOfRange, where, " = ", v, " is outside ", lo, "..", hi);
   *out = v;
   return Status::Ok();

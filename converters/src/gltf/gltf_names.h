@@ -36,7 +36,8 @@ inline std::string ShAttribute(int degree, int coef) {
 // ATEX_gaussian_textures attribute: VEC4 UNSIGNED_BYTE (height, width, axis_u, axis_v).
 inline constexpr const char* kAttrTextureLayout = "ATEX_gaussian_textures:LAYOUT";
 // ATEX_gaussian_deformation raw training parameters (all float).
-inline constexpr const char* kAttrRawRotation = "ATEX_gaussian_deformation:RAW_ROTATION";    // VEC4 (x, y, z, w) unnormalised
+inline constexpr const char* kAttrRawRotation =
+    "ATEX_gaussian_deformation:RAW_ROTATION";  // VEC4 (x, y, z, w) unnormalised
 inline constexpr const char* kAttrRawLogScale = "ATEX_gaussian_deformation:RAW_LOG_SCALE";  // VEC3
 inline constexpr const char* kAttrRawLogit = "ATEX_gaussian_deformation:RAW_OPACITY_LOGIT"; // SCALAR
 

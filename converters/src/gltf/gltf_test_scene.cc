@@ -75,7 +75,9 @@ Asset MakeTestAsset(const SceneSpec& spec) {
   return asset;
 }
 
-static uint32_t U32(const uint8_t* p) { return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24; }
+static uint32_t U32(const uint8_t* p) {
+  return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
+}
 
 GlbParts SplitGlb(const std::vector<uint8_t>& glb) {
   if (glb.size() < 20 || U32(glb.data()) != 0x46546C67) throw std::runtime_error("not a GLB");

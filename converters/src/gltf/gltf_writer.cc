@@ -116,7 +116,8 @@ StatusOr<std::vector<uint8_t>> GltfWriter::FinishGlb() {
   json.resize(Align4(json.size()), ' ');
   const uint64_t total = 12 + 8 + json.size() + 8 + bin_.size();
   if (total > UINT32_MAX) {
-    return MakeError(StatusCode::kLimitExceeded, "GLB would be ", total, " bytes; the format's limit is 4 GiB (use .gltf)");
+    return MakeError(StatusCode::kLimitExceeded, "GLB would be ", total,
+                     " bytes; the format's limit is 4 GiB (use .gltf)");
   }
   std::vector<uint8_t> out;
   out.reserve(total);

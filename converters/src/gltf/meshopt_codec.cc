@@ -18,7 +18,8 @@ StatusOr<MeshoptFilter> ParseMeshoptFilter(const std::string& name) {
   if (name == "NONE") return MeshoptFilter::kNone;
   if (name == "QUATERNION") return MeshoptFilter::kQuaternion;
   if (name == "EXPONENTIAL") return MeshoptFilter::kExponential;
-  if (name == "OCTAHEDRAL") return MakeError(StatusCode::kUnsupported, "meshopt filter OCTAHEDRAL is not used by splat data");
+  if (name == "OCTAHEDRAL")
+    return MakeError(StatusCode::kUnsupported, "meshopt filter OCTAHEDRAL is not used by splat data");
   return MakeError(StatusCode::kCorrupt, "unknown meshopt filter '", name, "'");
 }
 
@@ -27,14 +28,16 @@ StatusOr<MeshoptFilter> ParseMeshoptFilter(const std::string& name) {
 bool MeshoptAvailable() { return true; }
 
 StatusOr<std::vector<uint8_t>> EncodeExponential(const float* data, size_t count, size_t components, int bits) {
-  if (bits < 1 || bits > 24) return MakeError(StatusCode::kInvalidArgument, "exponential filter bits ", bits, " not in 1..24");
+  if (bits < 1 || bits > 24)
+    return MakeError(StatusCode::kInvalidArgument, "exponential filter bits ", bits, " not in 1..24");
   std::vector<uint8_t> out(count * components * 4);  // [count][components] int32
   meshopt_encodeFilterExp(out.data(), count, components * 4, bits, data);
   return out;
 }
 
 StatusOr<std::vector<uint8_t>> EncodeQuaternion(const float* xyzw, size_t count, int bits) {
-  if (bits < 4 || bits > 16) return MakeError(StatusCode::kInvalidArgument, "quaternion filter bits ", bits, " not in 4..16");
+  if (bits < 4 || bits > 16)
+    return MakeError(StatusCode::kInvalidArgument, "quaternion filter bits ", bits, " not in 4..16");
   std::vector<uint8_t> out(count * 8);  // [count][4] int16
   meshopt_encodeFilterQuat(out.data(), count, 8, bits, xyzw);
   return out;
@@ -49,7 +52,8 @@ Status DecodeFilter(MeshoptFilter filter, uint8_t* bytes, size_t count, size_t s
       meshopt_decodeFilterQuat(bytes, count, stride);
       return Status::Ok();
     case MeshoptFilter::kExponential:
-      if (stride % 4 != 0) return MakeError(StatusCode::kCorrupt, "EXPONENTIAL filter needs byteStride % 4 == 0, got ", stride);
+      if (stride % 4 != 0)
+        return MakeError(StatusCode::kCorrupt, "EXPONENTIAL filter needs byteStride % 4 == 0, got ", stride);
       meshopt_decodeFilterExp(bytes, count, stride);
       return Status::Ok();
   }
@@ -58,7 +62,8 @@ Status DecodeFilter(MeshoptFilter filter, uint8_t* bytes, size_t count, size_t s
 
 StatusOr<std::vector<uint8_t>> CompressAttributes(const uint8_t* bytes, size_t count, size_t stride) {
   if (stride == 0 || stride % 4 != 0 || stride > 256) {
-    return MakeError(StatusCode::kInvalidArgument, "meshopt ATTRIBUTES stride ", stride, " must be a multiple of 4 <= 256");
+    return MakeError(StatusCode::kInvalidArgument, "meshopt ATTRIBUTES stride ", stride,
+                     " must be a multiple of 4 <= 256");
   }
   std::vector<uint8_t> out(meshopt_encodeVertexBufferBound(count, stride));
   const size_t size = meshopt_encodeVertexBuffer(out.data(), out.size(), bytes, count, stride);

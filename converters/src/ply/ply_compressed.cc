@@ -163,7 +163,8 @@ StatusOr<Gaussians> ReadCompressedPly(const uint8_t* data, size_t size, const He
     const double norm = std::sqrt(2.0);
     const double small[3] = {(Unorm(pr >> 20, 10) - 0.5) * norm, (Unorm(pr >> 10, 10) - 0.5) * norm,
                              (Unorm(pr, 10) - 0.5) * norm};
-    const double largest = std::sqrt(std::max(0.0, 1 - (small[0] * small[0] + small[1] * small[1] + small[2] * small[2])));
+    const double largest =
+        std::sqrt(std::max(0.0, 1 - (small[0] * small[0] + small[1] * small[1] + small[2] * small[2])));
     const int which = int(pr >> 30);  // 0 = w, 1 = x, 2 = y, 3 = z (rot_0..rot_3)
     for (int k = 0, s = 0; k < 4; ++k) g.rotations[i * 4 + k] = float(k == which ? largest : small[s++]);
     double colour[3];

@@ -39,8 +39,8 @@ StatusOr<Image> DecodeWebp(const std::vector<uint8_t>& bytes, const std::string&
   }
   const uint64_t pixels = uint64_t(w) * uint64_t(h);
   if (pixels < min_pixels || pixels > max_pixels) {
-    return MakeError(StatusCode::kCorrupt, "SOG image '", name, "' is ", w, "x", h, " = ", pixels, " pixels; it must have ",
-                     min_pixels, " to ", max_pixels, " for this file's counts");
+    return MakeError(StatusCode::kCorrupt, "SOG image '", name, "' is ", w, "x", h, " = ", pixels,
+                     " pixels; it must have ", min_pixels, " to ", max_pixels, " for this file's counts");
   }
   std::unique_ptr<uint8_t, void (*)(void*)> decoded(WebPDecodeRGBA(bytes.data(), bytes.size(), &w, &h), WebPFree);
   if (!decoded) return MakeError(StatusCode::kCorrupt, "SOG image '", name, "': the WebP data does not decode");
@@ -90,7 +90,8 @@ double InverseLogTransform(double v) {
   return v < 0 ? -e : e;
 }
 
-StatusOr<Gaussians> DecodeSog(const std::vector<uint8_t>& meta_bytes, const LoadFn& load, const WebSplatLimits& limits) {
+StatusOr<Gaussians> DecodeSog(const std::vector<uint8_t>& meta_bytes, const LoadFn& load,
+                              const WebSplatLimits& limits) {
   json meta;
   try {
     meta = json::parse(meta_bytes.begin(), meta_bytes.end());

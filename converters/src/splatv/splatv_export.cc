@@ -57,7 +57,8 @@ SplatvCamera DefaultCamera(const Bounds& b, UpAxis up) {
     case UpAxis::kPosX: down = {-1, 0, 0}, forward = {0, 0, 1}; break;
     case UpAxis::kNegX: down = {1, 0, 0}, forward = {0, 0, -1}; break;
   }
-  const std::array<double, 3> right = {down[1] * forward[2] - down[2] * forward[1], down[2] * forward[0] - down[0] * forward[2],
+  const std::array<double, 3> right = {down[1] * forward[2] - down[2] * forward[1],
+                                       down[2] * forward[0] - down[0] * forward[2],
                                        down[0] * forward[1] - down[1] * forward[0]};
   SplatvCamera c;
   const double distance = 1.5 * std::max(b.diagonal(), 1e-6);
@@ -248,13 +249,15 @@ StatusOr<SplatvResult> EncodeSplatv(const Asset& asset, const SplatvOptions& opt
         for (int p = 0; p < 4; ++p) s.position_rhs[i * 12 + size_t(k * 4 + p)] += phi[p] * x;
       }
       const float* q = &g->rotations[i * 4];
-      const double norm = std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
+      const double norm =
+          std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
       float unit[4] = {1, 0, 0, 0};
       if (norm > 0) {
         for (int k = 0; k < 4; ++k) unit[k] = float(q[k] / norm);
       }
       float* prev = &s.previous_q[i * 4];
-      const double dot = double(unit[0]) * prev[0] + double(unit[1]) * prev[1] + double(unit[2]) * prev[2] + double(unit[3]) * prev[3];
+      const double dot =
+          double(unit[0]) * prev[0] + double(unit[1]) * prev[1] + double(unit[2]) * prev[2] + double(unit[3]) * prev[3];
       if (j > 0 && dot < 0) {
         for (float& c : unit) c = -c;  // q and -q are the same rotation: keep the path continuous
       }
@@ -352,9 +355,11 @@ StatusOr<SplatvResult> EncodeSplatv(const Asset& asset, const SplatvOptions& opt
       }
       report.position_max_relative = std::max(report.position_max_relative, std::sqrt(d2) / report.scene_extent);
       const float* q = &g->rotations[i * 4];
-      const double norm = std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
+      const double norm =
+          std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
       double dot = 0;
-      for (int k = 0; k < 4; ++k) dot += double(e.rotation[size_t(k)]) * (norm > 0 ? q[k] / norm : (k == 0 ? 1.0 : 0.0));
+      for (int k = 0; k < 4; ++k)
+        dot += double(e.rotation[size_t(k)]) * (norm > 0 ? q[k] / norm : (k == 0 ? 1.0 : 0.0));
       const double angle = 2.0 * std::acos(std::min(1.0, std::abs(dot))) * 180.0 / M_PI;
       rotation_sq += angle * angle;
       report.rotation_max_deg = std::max(report.rotation_max_deg, angle);
@@ -418,7 +423,8 @@ StatusOr<SplatvResult> EncodeSplatv(const Asset& asset, const SplatvOptions& opt
   return result;
 }
 
-Status WriteSplatvFile(const std::string& path, const Asset& asset, const SplatvOptions& options, SplatvFitReport* report) {
+Status WriteSplatvFile(const std::string& path, const Asset& asset, const SplatvOptions& options,
+                       SplatvFitReport* report) {
   ATEX_ASSIGN_OR_RETURN(SplatvResult result, EncodeSplatv(asset, options));
   if (report != nullptr) *report = result.report;
   return WriteFileAtomic(path, result.bytes);

@@ -49,12 +49,14 @@ std::vector<uint8_t> AssembleFile(const nlohmann::json& chunks, const std::vecto
 
 StatusOr<SplatvFile> DecodeSplatv(const uint8_t* data, size_t size) {
   auto u32 = [&](size_t at) {
-    return uint32_t(data[at]) | uint32_t(data[at + 1]) << 8 | uint32_t(data[at + 2]) << 16 | uint32_t(data[at + 3]) << 24;
+    return uint32_t(data[at]) | uint32_t(data[at + 1]) << 8 | uint32_t(data[at + 2]) << 16 |
+           uint32_t(data[at + 3]) << 24;
   };
   if (size < 8) return MakeError(StatusCode::kTruncated, "splatv header needs 8 bytes, the file has ", size);
   if (u32(0) != splatv::kSplatvMagic) return MakeError(StatusCode::kBadMagic, "not a splatv file (magic ", u32(0), ")");
   const uint64_t json_length = u32(4);
-  if (json_length > size - 8) return MakeError(StatusCode::kTruncated, "splatv chunk list of ", json_length, " bytes exceeds the file");
+  if (json_length > size - 8)
+    return MakeError(StatusCode::kTruncated, "splatv chunk list of ", json_length, " bytes exceeds the file");
   SplatvFile file;
   file.chunks = nlohmann::json::parse(data + 8, data + 8 + json_length, nullptr, false);
   if (file.chunks.is_discarded() || !file.chunks.is_array()) {
@@ -71,8 +73,8 @@ StatusOr<SplatvFile> DecodeSplatv(const uint8_t* data, size_t size) {
     }
     const uint64_t chunk_size = c["size"].get<uint64_t>();
     if (chunk_size > size - offset) {
-      return MakeError(StatusCode::kTruncated, "splatv chunk ", i, " at byte ", offset, " needs ", chunk_size, " bytes; ",
-                       size - offset, " remain");
+      return MakeError(StatusCode::kTruncated, "splatv chunk ", i, " at byte ", offset, " needs ", chunk_size,
+                       " bytes; ", size - offset, " remain");
     }
     if (!found && c["type"] == "splat") {
       found = true;

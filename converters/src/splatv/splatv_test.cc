@@ -202,7 +202,8 @@ TEST(SplatvExport, DefaultCameraHasTheWorldUpAxisUp) {
     auto file = DecodeSplatv(result->bytes.data(), result->bytes.size());
     ASSERT_TRUE(file.ok());
     const auto& r = file->chunks[file->splat_chunk]["cameras"][0]["rotation"];  // rows of camera-to-world
-    for (int k = 0; k < 3; ++k) EXPECT_NEAR(r[size_t(k)][1].get<double>(), down[size_t(k)], 1e-12) << "up '" << up << "'";
+    for (int k = 0; k < 3; ++k)
+      EXPECT_NEAR(r[size_t(k)][1].get<double>(), down[size_t(k)], 1e-12) << "up '" << up << "'";
   }
 }
 

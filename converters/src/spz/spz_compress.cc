@@ -66,7 +66,8 @@ StatusOr<std::vector<uint8_t>> GzipDecompress(const uint8_t* data, size_t size, 
     }
     const size_t produced_before = stream.total_out;
     stream.next_out = out.data() + produced_before;
-    stream.avail_out = static_cast<uInt>(std::min<size_t>(out.size() - produced_before, std::numeric_limits<uInt>::max()));
+    stream.avail_out =
+        static_cast<uInt>(std::min<size_t>(out.size() - produced_before, std::numeric_limits<uInt>::max()));
     const uInt avail_in_before = stream.avail_in;
     result = inflate(&stream, Z_NO_FLUSH);
     if (result == Z_STREAM_END) break;

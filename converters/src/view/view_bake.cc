@@ -192,7 +192,8 @@ StatusOr<ViewPayload> BakeKeyframes(const Asset& asset, const std::vector<uint32
     p.position_hi[i % 3] = std::max(p.position_hi[i % 3], positions[i]);
   }
   for (int c = 0; c < 3; ++c) {
-    if (!(p.position_hi[size_t(c)] > p.position_lo[size_t(c)])) p.position_hi[size_t(c)] = p.position_lo[size_t(c)] + 1e-6f;
+    if (!(p.position_hi[size_t(c)] > p.position_lo[size_t(c)]))
+      p.position_hi[size_t(c)] = p.position_lo[size_t(c)] + 1e-6f;
   }
   p.positions.resize(positions.size());
   for (size_t i = 0; i < positions.size(); ++i) {

@@ -96,10 +96,12 @@ Camera DefaultViewCamera(const Gaussians& gaussians, UpAxis up, int width, int h
   const double half_fov = 25.0 * std::numbers::pi / 180.0, elevation = 20.0 * std::numbers::pi / 180.0;
   const std::array<double, 3> u = view::ViewUpVector(up), h = HorizontalForward(up);
   std::array<double, 3> forward;
-  for (int c = 0; c < 3; ++c) forward[size_t(c)] = std::cos(elevation) * h[size_t(c)] - std::sin(elevation) * u[size_t(c)];
+  for (int c = 0; c < 3; ++c)
+    forward[size_t(c)] = std::cos(elevation) * h[size_t(c)] - std::sin(elevation) * u[size_t(c)];
   forward = Normalised(forward);
   const double ud = u[0] * forward[0] + u[1] * forward[1] + u[2] * forward[2];
-  const std::array<double, 3> down = Normalised({ud * forward[0] - u[0], ud * forward[1] - u[1], ud * forward[2] - u[2]});
+  const std::array<double, 3> down =
+      Normalised({ud * forward[0] - u[0], ud * forward[1] - u[1], ud * forward[2] - u[2]});
   const std::array<double, 3> right = Cross(down, forward);  // x = y cross z in a right-handed camera
   const double distance = 1.05 * radius / std::sin(half_fov);
   std::array<double, 3> eye;

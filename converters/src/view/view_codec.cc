@@ -37,8 +37,8 @@ StatusOr<std::vector<uint8_t>> DecompressArray(const std::vector<uint8_t>& compr
                                                size_t elements, size_t frames, size_t expected_bytes) {
   const size_t count = elements * frames;
   if ((element_size != 1 && element_size != 2) || count * element_size != expected_bytes) {
-    return MakeError(StatusCode::kCorrupt, "view payload: ", expected_bytes, " bytes do not hold ", count, " elements of ",
-                     element_size, " bytes");
+    return MakeError(StatusCode::kCorrupt, "view payload: ", expected_bytes, " bytes do not hold ", count,
+                     " elements of ", element_size, " bytes");
   }
   std::vector<uint8_t> planes(expected_bytes);
   uLongf size = uLongf(planes.size());

@@ -41,7 +41,9 @@ std::string Base64(const uint8_t* data, size_t size) {
 }
 
 StatusOr<std::vector<uint8_t>> FromBase64(std::string_view text, std::string_view what) {
-  if (text.size() % 4 != 0) return MakeError(StatusCode::kCorrupt, "view payload: ", what, ": base64 length ", text.size(), " is not a multiple of 4");
+  if (text.size() % 4 != 0)
+    return MakeError(StatusCode::kCorrupt, "view payload: ", what, ": base64 length ", text.size(),
+                     " is not a multiple of 4");
   std::vector<uint8_t> out;
   out.reserve(text.size() / 4 * 3);
   for (size_t i = 0; i < text.size(); i += 4) {
@@ -133,11 +135,12 @@ std::array<double, 3> OrbitTarget(const Camera& c, const std::array<double, 3>& 
 
 Status CheckCamera(const Camera& c) {
   if (c.width <= 0 || c.height <= 0 || !(c.fx > 0) || !(c.fy > 0) || !std::isfinite(c.cx) || !std::isfinite(c.cy)) {
-    return MakeError(StatusCode::kInvalidArgument, "view: the camera needs a positive size and focal lengths (", c.width,
-                     "x", c.height, ", fx ", c.fx, ", fy ", c.fy, ")");
+    return MakeError(StatusCode::kInvalidArgument, "view: the camera needs a positive size and focal lengths (",
+                     c.width, "x", c.height, ", fx ", c.fx, ", fy ", c.fy, ")");
   }
   for (double v : c.world_to_camera) {
-    if (!std::isfinite(v)) return MakeError(StatusCode::kInvalidArgument, "view: the camera's world_to_camera is not finite");
+    if (!std::isfinite(v))
+      return MakeError(StatusCode::kInvalidArgument, "view: the camera's world_to_camera is not finite");
   }
   return Status::Ok();
 }
@@ -146,8 +149,8 @@ Status CheckCamera(const Camera& c) {
 nlohmann::json Approximations(const Asset& asset, int frames) {
   nlohmann::json out = nlohmann::json::array();
   if (asset.gaussians.sh_degree > 0) {
-    out.push_back(StrCat("colour: the DC term only (the asset's view-dependent SH of degree ", asset.gaussians.sh_degree,
-                         " is dropped)"));
+    out.push_back(StrCat("colour: the DC term only (the asset's view-dependent SH of degree ",
+                         asset.gaussians.sh_degree, " is dropped)"));
   }
   if (asset.textures) {
     out.push_back("textures: each Gaussian's texture is replaced by its average (colour + 0.1 mean tanh(rgb), "
@@ -199,7 +202,8 @@ StatusOr<std::string> EncodeViewHtml(const Asset& asset, const ViewOptions& opti
   ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
   if (asset.gaussians.size() == 0) return MakeError(StatusCode::kInvalidArgument, "view: the asset has no Gaussians");
   if (options.frames < 0 || options.frames > kViewMaxFrames) {
-    return MakeError(StatusCode::kInvalidArgument, "view: frames = ", options.frames, " (need 0 .. ", kViewMaxFrames, ")");
+    return MakeError(StatusCode::kInvalidArgument, "view: frames = ", options.frames, " (need 0 .. ", kViewMaxFrames,
+                     ")");
   }
   if (options.camera) ATEX_RETURN_IF_ERROR(CheckCamera(*options.camera));
   ViewReport r;
@@ -239,12 +243,13 @@ StatusOr<std::string> EncodeViewHtml(const Asset& asset, const ViewOptions& opti
   int frames = requested;
   while (frames > (moving ? 2 : 1) && html_estimate(frames) > options.max_bytes) --frames;
   if (html_estimate(frames) > options.max_bytes) {
-    return MakeError(StatusCode::kBudgetTooSmall, "view: ", frames, " keyframe(s) of ", kept.size(), " Gaussians need about ",
-                     html_estimate(frames), " bytes, over the cap of ", options.max_bytes,
+    return MakeError(StatusCode::kBudgetTooSmall, "view: ", frames, " keyframe(s) of ", kept.size(),
+                     " Gaussians need about ", html_estimate(frames), " bytes, over the cap of ", options.max_bytes,
                      "; raise the cap or keep fewer Gaussians (max_splats)");
   }
   if (frames < requested) {
-    r.notes.push_back(StrCat(requested, " keyframes requested, ", frames, " fit the cap of ", options.max_bytes, " bytes"));
+    r.notes.push_back(
+        StrCat(requested, " keyframes requested, ", frames, " fit the cap of ", options.max_bytes, " bytes"));
   }
   const double t0 = asset.metadata.time_min, t1 = asset.metadata.time_max;
   for (int k = 0; k < frames; ++k) {
@@ -286,14 +291,19 @@ StatusOr<std::string> EncodeViewHtml(const Asset& asset, const ViewOptions& opti
       {"colour_range", payload.colour_range},
       {"opacity_scale", payload.opacity_scale},
       {"approximations", approximations},
-      {"source", {{"gaussians", r.gaussians}, {"time_min", t0}, {"time_max", t1}, {"texture_mode", asset.metadata.texture_mode}}},
+      {"source",
+       {{"gaussians", r.gaussians}, {"time_min", t0}, {"time_max", t1}, {"texture_mode", asset.metadata.texture_mode}}},
       {"arrays", nlohmann::json::object()}};
   const bool z = options.compress;
   auto& arrays = data["arrays"];
-  ATEX_ASSIGN_OR_RETURN(arrays["positions"], ArrayJson(payload.positions, "u16", 3, payload.position_frames, z, &r.stored_bytes));
-  ATEX_ASSIGN_OR_RETURN(arrays["rotations"], ArrayJson(payload.rotations, "i8", 4, payload.rotation_frames, z, &r.stored_bytes));
-  ATEX_ASSIGN_OR_RETURN(arrays["log_scales"], ArrayJson(payload.log_scales, "f16", 3, payload.scale_frames, z, &r.stored_bytes));
-  ATEX_ASSIGN_OR_RETURN(arrays["colours"], ArrayJson(payload.colours, "u8", 4, payload.colour_frames, z, &r.stored_bytes));
+  ATEX_ASSIGN_OR_RETURN(arrays["positions"],
+                        ArrayJson(payload.positions, "u16", 3, payload.position_frames, z, &r.stored_bytes));
+  ATEX_ASSIGN_OR_RETURN(arrays["rotations"],
+                        ArrayJson(payload.rotations, "i8", 4, payload.rotation_frames, z, &r.stored_bytes));
+  ATEX_ASSIGN_OR_RETURN(arrays["log_scales"],
+                        ArrayJson(payload.log_scales, "f16", 3, payload.scale_frames, z, &r.stored_bytes));
+  ATEX_ASSIGN_OR_RETURN(arrays["colours"],
+                        ArrayJson(payload.colours, "u8", 4, payload.colour_frames, z, &r.stored_bytes));
   r.payload_bytes = payload.positions.size() * 2 + payload.rotations.size() + payload.log_scales.size() * 2 +
                     payload.colours.size();
 
@@ -317,9 +327,11 @@ StatusOr<ViewPayload> DecodeViewHtml(std::string_view html) {
   if (open == std::string_view::npos) return MakeError(StatusCode::kBadMagic, "view page: no atex-view-data element");
   const size_t begin = open + kDataOpen.size();
   const size_t end = html.find("</script>", begin);
-  if (end == std::string_view::npos) return MakeError(StatusCode::kTruncated, "view page: the payload element is not closed (byte ", begin, ")");
+  if (end == std::string_view::npos)
+    return MakeError(StatusCode::kTruncated, "view page: the payload element is not closed (byte ", begin, ")");
   nlohmann::json data = nlohmann::json::parse(html.substr(begin, end - begin), nullptr, false);
-  if (data.is_discarded() || !data.is_object()) return MakeError(StatusCode::kCorrupt, "view page: the payload at byte ", begin, " is not JSON");
+  if (data.is_discarded() || !data.is_object())
+    return MakeError(StatusCode::kCorrupt, "view page: the payload at byte ", begin, " is not JSON");
   ViewPayload p;
   try {
     if (data.at("format") != "atex-view" || data.at("version") != 1) {
@@ -331,7 +343,8 @@ StatusOr<ViewPayload> DecodeViewHtml(std::string_view html) {
     p.position_hi = data.at("position_hi").get<std::array<float, 3>>();
     p.colour_range = data.at("colour_range").get<std::array<float, 2>>();
     p.opacity_scale = data.at("opacity_scale").get<float>();
-    if (p.count > html.size()) return MakeError(StatusCode::kCorrupt, "view page: count ", p.count, " exceeds the page's size");
+    if (p.count > html.size())
+      return MakeError(StatusCode::kCorrupt, "view page: count ", p.count, " exceeds the page's size");
     if (p.times.empty()) return MakeError(StatusCode::kCorrupt, "view page: no keyframe times");
     auto read = [&](const char* name, const char* type, int components, int* frames, auto* out) -> Status {
       const nlohmann::json& a = data.at("arrays").at(name);
@@ -346,8 +359,8 @@ StatusOr<ViewPayload> DecodeViewHtml(std::string_view html) {
       const size_t expected = size_t(*frames) * p.count * size_t(components);
       const std::string encoding = a.value("encoding", std::string("raw"));
       if (encoding == view::kCompressedEncoding) {
-        ATEX_ASSIGN_OR_RETURN(bytes, view::DecompressArray(bytes, sizeof(T), p.count * size_t(components), size_t(*frames),
-                                                           expected * sizeof(T)));
+        ATEX_ASSIGN_OR_RETURN(bytes, view::DecompressArray(bytes, sizeof(T), p.count * size_t(components),
+                                                           size_t(*frames), expected * sizeof(T)));
       } else if (encoding != "raw") {
         return MakeError(StatusCode::kCorrupt, "view page: array ", name, " has the unknown encoding '", encoding, "'");
       }

@@ -39,7 +39,8 @@ void ExpectKeyframesMatch(const Asset& asset, const ViewPayload& p) {
   const Gaussians& canonical = asset.gaussians;
   const size_t n = p.count, sh_stride = size_t(canonical.sh_coeffs()) * 3;
   double position_step[3];
-  for (int c = 0; c < 3; ++c) position_step[c] = (double(p.position_hi[size_t(c)]) - p.position_lo[size_t(c)]) / 65535.0;
+  for (int c = 0; c < 3; ++c)
+    position_step[c] = (double(p.position_hi[size_t(c)]) - p.position_lo[size_t(c)]) / 65535.0;
   std::vector<float> previous(n * 4, 0.0f);
   for (size_t k = 0; k < p.times.size(); ++k) {
     Gaussians g = canonical;
@@ -50,16 +51,19 @@ void ExpectKeyframesMatch(const Asset& asset, const ViewPayload& p) {
     for (size_t i = 0; i < n; ++i) {
       const auto pos = p.Position(k, i);
       for (int c = 0; c < 3; ++c) {
-        worst_position = std::max(worst_position, std::abs(pos[size_t(c)] - double(g.positions[i * 3 + size_t(c)])) / position_step[c]);
+        worst_position = std::max(worst_position,
+                                  std::abs(pos[size_t(c)] - double(g.positions[i * 3 + size_t(c)])) / position_step[c]);
       }
       // Unit quaternion, up to the sign the writer chose (aligned with the previous keyframe).
       const float* q = &g.rotations[i * 4];
-      const double norm = std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
+      const double norm =
+          std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
       const auto r = p.Rotation(k, i);
       double dot = 0;
       for (int c = 0; c < 4; ++c) dot += r[size_t(c)] * q[c] / norm;
       const double sign = dot < 0 ? -1 : 1;
-      for (int c = 0; c < 4; ++c) worst_rotation = std::max(worst_rotation, std::abs(r[size_t(c)] - sign * q[c] / norm));
+      for (int c = 0; c < 4; ++c)
+        worst_rotation = std::max(worst_rotation, std::abs(r[size_t(c)] - sign * q[c] / norm));
       if (k > 0 && p.rotation_frames > 1) {
         double along = 0;  // consecutive keyframes blend the near pair: non-negative dot products
         for (int c = 0; c < 4; ++c) along += double(r[size_t(c)]) * previous[i * 4 + size_t(c)];
@@ -115,7 +119,8 @@ TEST(View, PayloadDecodesToTheDeformedGaussiansAtEachKeyframe) {
   ExpectKeyframesMatch(asset, p);
   // The motion is real: the keyframes differ.
   double moved = 0;
-  for (size_t i = 0; i < p.count; ++i) moved = std::max(moved, double(std::abs(p.Position(6, i)[0] - p.Position(0, i)[0])));
+  for (size_t i = 0; i < p.count; ++i)
+    moved = std::max(moved, double(std::abs(p.Position(6, i)[0] - p.Position(0, i)[0])));
   EXPECT_GT(moved, 1e-3);
   EXPECT_EQ(report.times, p.times);
   EXPECT_EQ(report.kept, 300u);
@@ -267,7 +272,8 @@ TEST(View, DefaultCameraIsUprightAndLooksAtTheScene) {
     EXPECT_NEAR(v, 240, 1e-6);
     size_t inside = 0;
     for (size_t i = 0; i < asset.gaussians.size(); ++i) {
-      const double x[3] = {asset.gaussians.positions[i * 3], asset.gaussians.positions[i * 3 + 1], asset.gaussians.positions[i * 3 + 2]};
+      const double x[3] = {asset.gaussians.positions[i * 3], asset.gaussians.positions[i * 3 + 1],
+                           asset.gaussians.positions[i * 3 + 2]};
       inside += ProjectToImage(cam, x, 0.2, &u, &v) ? 1 : 0;
     }
     EXPECT_GE(inside, asset.gaussians.size() * 9 / 10) << UpAxisName(up);

@@ -96,8 +96,9 @@ StatusOr<Gaussians> ReadKsplatGaussiansFromMemory(const uint8_t* data, size_t si
       return MakeError(StatusCode::kCorrupt, ".ksplat: section ", s, " (header at byte ", at, ") holds ", sec.count,
                        " of at most ", sec.max_count, " Gaussians");
     }
-    if (level >= 1 && (sec.bucket_bytes != 12 || sec.partial_buckets > sec.bucket_count ||
-                       sec.full_buckets > sec.bucket_count || !(sec.block_size > 0) || !std::isfinite(sec.block_size))) {
+    if (level >= 1 &&
+        (sec.bucket_bytes != 12 || sec.partial_buckets > sec.bucket_count || sec.full_buckets > sec.bucket_count ||
+         !(sec.block_size > 0) || !std::isfinite(sec.block_size))) {
       return MakeError(StatusCode::kCorrupt, ".ksplat: section ", s, " (header at byte ", at,
                        ") has inconsistent buckets (", sec.bucket_count, " buckets of ", sec.bucket_bytes, " bytes, ",
                        sec.full_buckets, " full, ", sec.partial_buckets, " partial, block size ", sec.block_size, ")");

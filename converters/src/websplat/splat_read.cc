@@ -22,7 +22,8 @@ StatusOr<Gaussians> ReadSplatGaussiansFromMemory(const uint8_t* data, size_t siz
   }
   const size_t n = size / kSplatRow;
   if (n > limits.max_gaussians) {
-    return MakeError(StatusCode::kLimitExceeded, ".splat: ", n, " Gaussians exceed the limit of ", limits.max_gaussians);
+    return MakeError(StatusCode::kLimitExceeded, ".splat: ", n, " Gaussians exceed the limit of ",
+                     limits.max_gaussians);
   }
   Gaussians g;
   g.sh_degree = 0;

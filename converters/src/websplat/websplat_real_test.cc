@@ -70,7 +70,8 @@ const fs::path* Fixtures(std::string* why) {
     if (failure.empty()) {
       dir = std::make_unique<testing::TempDir>();
       const std::string command = "node " + Quote((WritersDir() / "make_fixtures.mjs").string()) + " " +
-                                  Quote(source.string()) + " " + Quote(dir->path().string()) + " " + Quote(sog.string());
+                                  Quote(source.string()) + " " + Quote(dir->path().string()) + " " +
+                                  Quote(sog.string());
       if (std::system(command.c_str()) != 0) failure = "make_fixtures.mjs failed: " + command;
     }
   }
@@ -232,7 +233,8 @@ Gaussians Source() {
 double Extent(const Gaussians& g) {
   float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
   for (size_t i = 0; i < g.size(); ++i) {
-    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], g.positions[i * 3 + k]), hi[k] = std::max(hi[k], g.positions[i * 3 + k]);
+    for (int k = 0; k < 3; ++k)
+      lo[k] = std::min(lo[k], g.positions[i * 3 + k]), hi[k] = std::max(hi[k], g.positions[i * 3 + k]);
   }
   return std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
 }

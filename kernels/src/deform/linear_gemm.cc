@@ -7,7 +7,8 @@ namespace atex::cuda::deform_detail {
 ScopedCublasSettings::ScopedCublasSettings(cublasHandle_t handle, cudaStream_t stream, bool allow_tf32)
     : handle_(handle) {
   status_ = CublasStatus(cublasGetStream(handle_, &old_stream_), "cublasGetStream", __FILE__, __LINE__);
-  if (status_.ok()) status_ = CublasStatus(cublasGetMathMode(handle_, &old_math_), "cublasGetMathMode", __FILE__, __LINE__);
+  if (status_.ok())
+    status_ = CublasStatus(cublasGetMathMode(handle_, &old_math_), "cublasGetMathMode", __FILE__, __LINE__);
   if (status_.ok()) {
     status_ = CublasStatus(cublasGetPointerMode(handle_, &old_pointer_mode_), "cublasGetPointerMode", __FILE__,
                            __LINE__);

@@ -73,10 +73,12 @@ Status FusedLinearRelu::Forward(const float* w, int in, int out, const float* x,
       cublasLtMatmulDescSetAttribute(raw_desc, CUBLASLT_MATMUL_DESC_TRANSA, &transpose, sizeof(transpose)), "TRANSA"));
   ATEX_RETURN_IF_ERROR(
       LtStatus(cublasLtMatmulDescSetAttribute(raw_desc, CUBLASLT_MATMUL_DESC_TRANSB, &none, sizeof(none)), "TRANSB"));
-  ATEX_RETURN_IF_ERROR(LtStatus(
-      cublasLtMatmulDescSetAttribute(raw_desc, CUBLASLT_MATMUL_DESC_EPILOGUE, &epilogue, sizeof(epilogue)), "EPILOGUE"));
-  ATEX_RETURN_IF_ERROR(LtStatus(
-      cublasLtMatmulDescSetAttribute(raw_desc, CUBLASLT_MATMUL_DESC_BIAS_POINTER, &bias, sizeof(bias)), "BIAS_POINTER"));
+  ATEX_RETURN_IF_ERROR(
+      LtStatus(cublasLtMatmulDescSetAttribute(raw_desc, CUBLASLT_MATMUL_DESC_EPILOGUE, &epilogue, sizeof(epilogue)),
+               "EPILOGUE"));
+  ATEX_RETURN_IF_ERROR(
+      LtStatus(cublasLtMatmulDescSetAttribute(raw_desc, CUBLASLT_MATMUL_DESC_BIAS_POINTER, &bias, sizeof(bias)),
+               "BIAS_POINTER"));
   ATEX_RETURN_IF_ERROR(
       LtStatus(cublasLtMatmulDescSetAttribute(raw_desc, CUBLASLT_MATMUL_DESC_BIAS_DATA_TYPE, &bias_type,
                                               sizeof(bias_type)),
@@ -113,8 +115,9 @@ Status FusedLinearRelu::Forward(const float* w, int in, int out, const float* x,
                                                                        &workspace, sizeof(workspace)),
                                   "MAX_WORKSPACE_BYTES"));
     for (const auto& m : minimum) {
-      ATEX_RETURN_IF_ERROR(LtStatus(
-          cublasLtMatmulPreferenceSetAttribute(raw_preference, m.attribute, &m.bytes, sizeof(m.bytes)), "MIN_ALIGNMENT"));
+      ATEX_RETURN_IF_ERROR(
+          LtStatus(cublasLtMatmulPreferenceSetAttribute(raw_preference, m.attribute, &m.bytes, sizeof(m.bytes)),
+                   "MIN_ALIGNMENT"));
     }
     cublasLtMatmulHeuristicResult_t result{};
     int found = 0;

@@ -123,7 +123,8 @@ dim3 ColumnGrid(int64_t rows, int width) {
   const int64_t row_tiles = (rows + kTileRows - 1) / kTileRows;
   // About 4096 blocks in all is plenty to fill the GPU; more only adds atomics.
   const int64_t cap = std::max<int64_t>(1, 4096 / static_cast<int64_t>(column_tiles));
-  return dim3(column_tiles, static_cast<unsigned>(std::max<int64_t>(1, std::min(row_tiles, std::min<int64_t>(cap, 65535)))));
+  return dim3(column_tiles,
+              static_cast<unsigned>(std::max<int64_t>(1, std::min(row_tiles, std::min<int64_t>(cap, 65535)))));
 }
 
 }  // namespace

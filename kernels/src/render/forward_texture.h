@@ -44,7 +44,8 @@ struct ForwardPlane {
 };
 
 // `camera_rotation`: W (world → camera) of the view; `f`: the splat's TextureFrame.
-ATEX_HD ForwardPlane MakeForwardPlane(const detail::Mat3<float>& camera_rotation, const detail::TextureFrame<float>& f) {
+ATEX_HD ForwardPlane MakeForwardPlane(const detail::Mat3<float>& camera_rotation,
+                                      const detail::TextureFrame<float>& f) {
   const detail::Vec3<float> a = camera_rotation * (f.inv_scale_u * f.axis_u);
   const detail::Vec3<float> b = camera_rotation * (f.inv_scale_v * f.axis_v);
   const detail::Vec3<float> n = camera_rotation * f.normal;

@@ -64,7 +64,8 @@ struct BasicTexturePool {
   std::vector<uint8_t> widths;    // [N] texels along u (the axis_u direction), in {1, 2, 4}
   std::vector<uint8_t> axis_u;    // [N] canonical local axis p in {0, 1, 2} spanning u
   std::vector<uint8_t> axis_v;    // [N] canonical local axis q in {0, 1, 2}, q != p, spanning v
-  std::vector<uint64_t> offsets;  // [N+1] first texel of Gaussian i; DERIVED (exclusive prefix sum of h*w), never stored
+  std::vector<uint64_t>
+      offsets;  // [N+1] first texel of Gaussian i; DERIVED (exclusive prefix sum of h*w), never stored
   std::vector<T> texels;          // [offsets[N]][h][w][4] packed; Gaussian i owns rows offsets[i] .. offsets[i+1]-1,
                                   // row-major over (v, u), RGBA innermost
 
@@ -140,7 +141,8 @@ struct BasicDeformationField {
   // planes[s][p]: [C][res_b][res_a] for scale s and plane p (kHexPlaneAxes[p] = (a, b)).
   std::vector<std::array<std::vector<T>, kNumHexPlanes>> planes;
   std::vector<BasicLinear<T>> trunk;                                   // trunk_layers layers
-  std::array<std::array<BasicLinear<T>, 2>, kNumDeformHeads> heads;    // [h][0]: W->W, [h][1]: W->head_outputs(h); empty if off
+  std::array<std::array<BasicLinear<T>, 2>, kNumDeformHeads>
+      heads;  // [h][0]: W->W, [h][1]: W->head_outputs(h); empty if off
 };
 using DeformationField = BasicDeformationField<float>;
 using Linear = BasicLinear<float>;

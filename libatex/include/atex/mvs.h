@@ -15,11 +15,11 @@
 // 3. Plane sweep: fronto-parallel planes of the reference camera, uniform in inverse depth
 //    over [near_depth, far_depth]: `depth_planes` of them, or with depth_planes = 0 as many
 //    as make the anchor's image in the neighbours move by at most plane_step_px from one
-//    plane to the next (so a match is never stepped over; in [16, max_depth_planes]). Each neighbour image is warped onto
-//    the plane by its homography (bilinear); photo-consistency is the ZNCC of the grey
-//    values over a (2·window_radius + 1)² window (box sums), −1 where the window leaves
-//    the neighbour or the warped window is flat. A pixel's score at a plane is the mean
-//    of its best `best_neighbors` ZNCCs (occlusion: the others may see something else).
+//    plane to the next (so a match is never stepped over; in [16, max_depth_planes]). Each neighbour image is warped
+//    onto the plane by its homography (bilinear); photo-consistency is the ZNCC of the grey values over a
+//    (2·window_radius + 1)² window (box sums), −1 where the window leaves the neighbour or the warped window is flat. A
+//    pixel's score at a plane is the mean of its best `best_neighbors` ZNCCs (occlusion: the others may see something
+//    else).
 // 4. Winner takes all, with the depth refined by a parabola through the scores of the
 //    neighbouring planes (in inverse depth). A depth is kept when the score is at least
 //    min_zncc, the reference window's grey standard deviation is at least min_texture,

@@ -61,12 +61,12 @@ struct BasicRenderState {
   std::vector<T> opacity;                     // [N] sigmoid(logit)
   std::vector<T> color;                       // [N][3] c_SH (zero when invisible)
   std::vector<detail::TextureFrame<T>> frames;  // [N] texture frames (textured only)
-  std::vector<uint64_t> tile_ranges;          // [tiles_y*tiles_x + 1] entries of tile t: [tile_ranges[t], tile_ranges[t+1])
+  std::vector<uint64_t> tile_ranges;  // [tiles_y*tiles_x + 1] entries of tile t: [tile_ranges[t], tile_ranges[t+1])
   std::vector<int32_t> tile_gaussians;        // [E] Gaussian of each entry; per tile in (depth, index) order
   std::vector<uint64_t> gaussian_entry_ranges;  // [N+1] Gaussian g owns gaussian_entries[r[g] .. r[g+1])
   std::vector<uint64_t> gaussian_entries;     // [E] entry ids of each Gaussian in ascending tile order
   std::vector<T> final_transmittance;         // [H][W] T_final
-  std::vector<int32_t> contributor_end;       // [H][W] 1 + position (in its tile list) of the last added entry, 0 = none
+  std::vector<int32_t> contributor_end;  // [H][W] 1 + position (in its tile list) of the last added entry, 0 = none
 };
 
 template <typename T>

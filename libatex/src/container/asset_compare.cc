@@ -6,15 +6,16 @@
 namespace atex::testing {
 namespace {
 
-::testing::AssertionResult Arrays(const char* what, const std::vector<float>& a, const std::vector<float>& b, float tol) {
+::testing::AssertionResult Arrays(const char* what, const std::vector<float>& a, const std::vector<float>& b,
+                                  float tol) {
   if (a.size() != b.size()) {
     return ::testing::AssertionFailure() << what << ": sizes " << a.size() << " vs " << b.size();
   }
   for (size_t i = 0; i < a.size(); ++i) {
     const bool ok = tol == 0 ? a[i] == b[i] : std::fabs(a[i] - b[i]) <= tol;
     if (!ok) {
-      return ::testing::AssertionFailure() << what << "[" << i << "]: " << a[i] << " vs " << b[i] << " (tolerance " << tol
-                                           << ")";
+      return ::testing::AssertionFailure()
+             << what << "[" << i << "]: " << a[i] << " vs " << b[i] << " (tolerance " << tol << ")";
     }
   }
   return ::testing::AssertionSuccess();

@@ -97,7 +97,8 @@ class AssetDecoder {
     g.sh.resize(dc.size() * k);
     for (uint64_t i = 0; i < n; ++i) {
       std::copy(dc.begin() + i * 3, dc.begin() + i * 3 + 3, g.sh.begin() + i * k * 3);
-      if (k > 1) std::copy(rest.begin() + i * (k - 1) * 3, rest.begin() + (i + 1) * (k - 1) * 3, g.sh.begin() + i * k * 3 + 3);
+      if (k > 1)
+        std::copy(rest.begin() + i * (k - 1) * 3, rest.begin() + (i + 1) * (k - 1) * 3, g.sh.begin() + i * k * 3 + 3);
     }
     if (textures) asset.textures = std::move(textures);
     if (field) {
@@ -130,8 +131,12 @@ class AssetDecoder {
 
  private:
   bool Has(ChunkId id) const { return index_[static_cast<size_t>(id)] >= 0; }
-  const TocEntry& Entry(ChunkId id) const { return container_.entries[static_cast<size_t>(index_[static_cast<size_t>(id)])]; }
-  std::string Label(ChunkId id) const { return ChunkLabel(Entry(id), static_cast<size_t>(index_[static_cast<size_t>(id)])); }
+  const TocEntry& Entry(ChunkId id) const {
+    return container_.entries[static_cast<size_t>(index_[static_cast<size_t>(id)])];
+  }
+  std::string Label(ChunkId id) const {
+    return ChunkLabel(Entry(id), static_cast<size_t>(index_[static_cast<size_t>(id)]));
+  }
 
   Status IndexChunks() {
     index_.fill(-1);
@@ -142,7 +147,8 @@ class AssetDecoder {
         if (e.critical()) {
           return MakeError(StatusCode::kUnknownCriticalChunk, ChunkLabel(e, i),
                            " is marked critical and this reader (format ", kVersionMajor, ".", kVersionMinor,
-                           ") does not know it; file version is ", container_.version_major, ".", container_.version_minor);
+                           ") does not know it; file version is ", container_.version_major, ".",
+                           container_.version_minor);
         }
         continue;  // unknown, non-critical: skipped
       }
@@ -175,8 +181,8 @@ class AssetDecoder {
       const TocEntry& e = container_.entries[static_cast<size_t>(index_[id])];
       if (AddOverflows(total, e.raw_size, &total) || total > options_.max_decoded_bytes) {
         return MakeError(StatusCode::kLimitExceeded, "chunks decode to more than the limit of ",
-                         options_.max_decoded_bytes, " bytes (reached at ", ChunkLabel(e, static_cast<size_t>(index_[id])),
-                         ", raw size ", e.raw_size, ")");
+                         options_.max_decoded_bytes, " bytes (reached at ",
+                         ChunkLabel(e, static_cast<size_t>(index_[id])), ", raw size ", e.raw_size, ")");
       }
     }
     // A decompression bomb: checked before anything is inflated.
@@ -196,7 +202,8 @@ class AssetDecoder {
     if (e.codec.codec == Codec::kDraco) {
       // Parameters were checked by ParseContainer: skip <= raw_size, (raw - skip) % 12 == 0.
       if (e.codec.skip > stored_size) {
-        return MakeError(StatusCode::kCorrupt, Label(id), ": stored bytes shorter than the ", e.codec.skip, "-byte prefix");
+        return MakeError(StatusCode::kCorrupt, Label(id), ": stored bytes shorter than the ", e.codec.skip,
+                         "-byte prefix");
       }
       const uint64_t points = (e.raw_size - e.codec.skip) / 12;
       if (points != gaussian_count_) {
@@ -218,8 +225,8 @@ class AssetDecoder {
   // real (decoded) size. Thread-safe for distinct outputs.
   Status Stream(ChunkId id, uint32_t components, uint64_t rows, std::vector<float>* values) const {
     const TocEntry& e = Entry(id);
-    if (std::endian::native == std::endian::little && e.codec.codec == Codec::kShuffleZstd && e.codec.element_size == 4 &&
-        e.codec.skip >= kStreamHeaderSize) {
+    if (std::endian::native == std::endian::little && e.codec.codec == Codec::kShuffleZstd &&
+        e.codec.element_size == 4 && e.codec.skip >= kStreamHeaderSize) {
       // The common f32 case: unshuffle straight into the destination (one buffer less).
       auto transformed = DecodeZstdStage(data_ + e.offset, static_cast<size_t>(e.stored_size), e.raw_size, e.codec);
       if (!transformed.ok()) return transformed.status().WithContext(Label(id));
@@ -247,7 +254,8 @@ class AssetDecoder {
       // Another layout: undo the transform in full and take the general path.
       ChunkBytes raw = ChunkBytes::Allocate(transformed.size());
       CopyBytes(raw.mutable_data(), transformed.data(), codec.skip);
-      UnshuffleBytes(transformed.data() + codec.skip, transformed.size() - codec.skip, 4, raw.mutable_data() + codec.skip);
+      UnshuffleBytes(transformed.data() + codec.skip, transformed.size() - codec.skip, 4,
+                     raw.mutable_data() + codec.skip);
       return DecodeStream(raw.data(), raw.size(), components, rows, values);
     }
     if (info.components != components) {

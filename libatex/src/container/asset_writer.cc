@@ -40,8 +40,8 @@ struct EncodeCache::Impl {
     auto& list = chunks[static_cast<size_t>(id)];
     for (auto it = list.begin(); it != list.end(); ++it) {
       if (it->zstd_level == o.zstd_level && it->fallback_to_raw == o.fallback_to_raw && it->params.codec == p.codec &&
-          it->params.element_size == p.element_size && it->params.components == p.components && it->params.skip == p.skip &&
-          it->raw == raw) {
+          it->params.element_size == p.element_size && it->params.components == p.components &&
+          it->params.skip == p.skip && it->raw == raw) {
         *out = it->chunk;
         list.splice(list.begin(), list, it);
         ++hits;
@@ -80,7 +80,9 @@ struct ChunkJob {
   std::function<StatusOr<OutputChunk>()> make;
 };
 
-bool ValidEncoding(ScalarEncoding e) { return static_cast<uint8_t>(e) <= static_cast<uint8_t>(ScalarEncoding::kQuant8); }
+bool ValidEncoding(ScalarEncoding e) {
+  return static_cast<uint8_t>(e) <= static_cast<uint8_t>(ScalarEncoding::kQuant8);
+}
 
 Status CheckOptions(const WriteOptions& o) {
   if (static_cast<uint8_t>(o.codec) > static_cast<uint8_t>(Codec::kDeltaShuffleZstd)) {
@@ -93,10 +95,12 @@ Status CheckOptions(const WriteOptions& o) {
   }
   for (ScalarEncoding e : {o.positions, o.rotations, o.log_scales, o.opacities, o.sh_dc, o.sh_rest, o.texels,
                            o.deformation_grids}) {
-    if (!ValidEncoding(e)) return MakeError(StatusCode::kInvalidArgument, "unknown scalar encoding ", int{static_cast<uint8_t>(e)});
+    if (!ValidEncoding(e))
+      return MakeError(StatusCode::kInvalidArgument, "unknown scalar encoding ", int{static_cast<uint8_t>(e)});
   }
   if (o.draco_positions) {
-    if (!HaveDraco()) return MakeError(StatusCode::kUnsupportedCodec, "Draco positions requested but this build has no Draco");
+    if (!HaveDraco())
+      return MakeError(StatusCode::kUnsupportedCodec, "Draco positions requested but this build has no Draco");
     if (o.draco_position_bits < 1 || o.draco_position_bits > 30) {
       return MakeError(StatusCode::kInvalidArgument, "Draco position bits ", o.draco_position_bits, " outside 1..30");
     }
@@ -169,7 +173,8 @@ CodecParams StreamCodec(const WriteOptions& o, ScalarEncoding encoding, uint32_t
 ChunkJob StreamJob(ChunkId id, std::vector<float> values, uint64_t rows, uint32_t components, ScalarEncoding encoding,
                    const Context& c, const char* what) {
   return {id, [=, values = std::move(values), &c]() -> StatusOr<OutputChunk> {
-            ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw, EncodeStream(values.data(), rows, components, encoding, what));
+            ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw,
+                                  EncodeStream(values.data(), rows, components, encoding, what));
             return Finish(id, std::move(raw), StreamCodec(c.options, encoding, components), c);
           }};
 }
@@ -178,7 +183,8 @@ ChunkJob StreamJob(ChunkId id, std::vector<float> values, uint64_t rows, uint32_
 ChunkJob StreamJobRef(ChunkId id, const std::vector<float>& values, uint64_t rows, uint32_t components,
                       ScalarEncoding encoding, const Context& c, const char* what) {
   return {id, [=, &values, &c]() -> StatusOr<OutputChunk> {
-            ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw, EncodeStream(values.data(), rows, components, encoding, what));
+            ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw,
+                                  EncodeStream(values.data(), rows, components, encoding, what));
             return Finish(id, std::move(raw), StreamCodec(c.options, encoding, components), c);
           }};
 }
@@ -193,8 +199,9 @@ ChunkJob DracoPositionsJob(const std::vector<float>& positions, uint64_t n, cons
             w.Put<uint16_t>(3);
             w.Put<uint32_t>(0);
             w.Put<uint64_t>(n);
-            ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> draco,
-                                  DracoEncodePositions(positions.data(), static_cast<size_t>(n), o.draco_position_bits));
+            ATEX_ASSIGN_OR_RETURN(
+                std::vector<uint8_t> draco,
+                DracoEncodePositions(positions.data(), static_cast<size_t>(n), o.draco_position_bits));
             OutputChunk chunk = Header(ChunkId::kGpos, kStreamHeaderSize + 12 * n);
             if (o.fallback_to_raw && header.size() + draco.size() >= chunk.raw_size) {
               // Not smaller: store the exact floats instead (lossless).
@@ -236,7 +243,9 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
                       ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw, EncodeMeta(asset.metadata));
                       return Finish(ChunkId::kMeta, std::move(raw), StructuredCodec(o), ctx);
                     }});
-    jobs.push_back({ChunkId::kGhdr, [&]() { return Finish(ChunkId::kGhdr, EncodeGhdr({n, g.sh_degree}), StructuredCodec(o), ctx); }});
+    jobs.push_back({ChunkId::kGhdr, [&]() {
+                      return Finish(ChunkId::kGhdr, EncodeGhdr({n, g.sh_degree}), StructuredCodec(o), ctx);
+                    }});
     if (o.draco_positions && n > 0) {
       jobs.push_back(DracoPositionsJob(g.positions, n, o));
     } else {
@@ -256,7 +265,8 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
     if (k > 1) jobs.push_back(StreamJob(ChunkId::kGshr, std::move(sh_rest), n, 3 * (k - 1), o.sh_rest, ctx, "sh_rest"));
     if (asset.textures) {
       const TexturePool& t = *asset.textures;
-      jobs.push_back({ChunkId::kTlay, [&]() { return Finish(ChunkId::kTlay, EncodeTextureLayout(t), StructuredCodec(o), ctx); }});
+      jobs.push_back(
+          {ChunkId::kTlay, [&]() { return Finish(ChunkId::kTlay, EncodeTextureLayout(t), StructuredCodec(o), ctx); }});
       jobs.push_back(StreamJobRef(ChunkId::kTexl, t.texels, t.texel_count(), kTexelChannels, o.texels, ctx, "texels"));
     }
     if (asset.deformation) {
@@ -266,10 +276,12 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
                       }});
       std::vector<float> grids = FlattenGrids(d);
       const uint64_t grid_count = grids.size();
-      jobs.push_back(StreamJob(ChunkId::kDgrd, std::move(grids), grid_count, 1, o.deformation_grids, ctx, "deformation grids"));
+      jobs.push_back(
+          StreamJob(ChunkId::kDgrd, std::move(grids), grid_count, 1, o.deformation_grids, ctx, "deformation grids"));
       std::vector<float> mlp = FlattenMlp(d);
       const uint64_t mlp_count = mlp.size();
-      jobs.push_back(StreamJob(ChunkId::kDmlp, std::move(mlp), mlp_count, 1, ScalarEncoding::kFloat32, ctx, "deformation MLP"));
+      jobs.push_back(
+          StreamJob(ChunkId::kDmlp, std::move(mlp), mlp_count, 1, ScalarEncoding::kFloat32, ctx, "deformation MLP"));
     }
     if (asset.stats && o.write_stats) {
       const GaussianStats& s = *asset.stats;
@@ -295,7 +307,8 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
       try {
         results[i] = jobs[i].make();
       } catch (const std::bad_alloc&) {
-        results[i] = Status(StatusCode::kLimitExceeded, StrCat("out of memory encoding chunk '", TypeInfo(jobs[i].id).type, "'"));
+        results[i] = Status(StatusCode::kLimitExceeded,
+                            StrCat("out of memory encoding chunk '", TypeInfo(jobs[i].id).type, "'"));
       }
     }
     std::vector<OutputChunk> chunks;

@@ -19,7 +19,8 @@ inline float Dequantise(uint32_t q, double lo, double range, double lmax) {
 }
 
 Status NonFinite(const char* what, uint64_t row, uint32_t component, float value) {
-  return MakeError(StatusCode::kOutOfRange, what, " row ", row, " component ", component, " is not finite (", value, ")");
+  return MakeError(StatusCode::kOutOfRange, what, " row ", row, " component ", component, " is not finite (", value,
+                   ")");
 }
 
 }  // namespace
@@ -52,9 +53,11 @@ StatusOr<std::vector<uint8_t>> EncodeStream(const float* values, uint64_t rows, 
   }
   const uint64_t count = rows * components;
   uint32_t bad = 0;  // a branch-free pass; the position only on failure
-  for (uint64_t i = 0; i < count; ++i) bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(values[i]) & 0x7F800000u) == 0x7F800000u);
+  for (uint64_t i = 0; i < count; ++i)
+    bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(values[i]) & 0x7F800000u) == 0x7F800000u);
   for (uint64_t i = 0; bad && i < count; ++i) {
-    if (!std::isfinite(values[i])) return NonFinite(what, i / components, static_cast<uint32_t>(i % components), values[i]);
+    if (!std::isfinite(values[i]))
+      return NonFinite(what, i / components, static_cast<uint32_t>(i % components), values[i]);
   }
   const uint64_t header = StreamHeaderBytes(encoding, components);
   std::vector<uint8_t> out;
@@ -113,7 +116,8 @@ StatusOr<std::vector<uint8_t>> EncodeStream(const float* values, uint64_t rows, 
         const double range = static_cast<double>(hi[c]) - static_cast<double>(lo[c]);
         uint32_t q = 0;
         if (range > 0) {
-          const double t = std::floor((static_cast<double>(values[i]) - static_cast<double>(lo[c])) / range * lmax + 0.5);
+          const double t =
+              std::floor((static_cast<double>(values[i]) - static_cast<double>(lo[c])) / range * lmax + 0.5);
           q = static_cast<uint32_t>(std::clamp(t, 0.0, static_cast<double>(lmax)));
         }
         if (b == 2) {
@@ -146,10 +150,11 @@ StatusOr<StreamInfo> ParseStreamHeader(const uint8_t* raw, size_t size) {
   if (info.components == 0) return MakeError(StatusCode::kCorrupt, "stream has 0 components (byte 2)");
   info.header_bytes = StreamHeaderBytes(info.encoding, info.components);
   uint64_t values = 0, value_bytes = 0, expected = 0;
-  if (MulOverflows(info.rows, info.components, &values) || MulOverflows(values, EncodingBytes(info.encoding), &value_bytes) ||
+  if (MulOverflows(info.rows, info.components, &values) ||
+      MulOverflows(values, EncodingBytes(info.encoding), &value_bytes) ||
       AddOverflows(value_bytes, info.header_bytes, &expected) || expected != size) {
-    return MakeError(StatusCode::kCorrupt, "stream of ", info.rows, " rows x ", info.components, " components (encoding ",
-                     int{encoding}, ") does not match its raw size ", size);
+    return MakeError(StatusCode::kCorrupt, "stream of ", info.rows, " rows x ", info.components,
+                     " components (encoding ", int{encoding}, ") does not match its raw size ", size);
   }
   return info;
 }
@@ -158,7 +163,8 @@ Status DecodeStream(const uint8_t* raw, size_t size, uint32_t expected_component
                     std::vector<float>* values) {
   ATEX_ASSIGN_OR_RETURN(const StreamInfo info, ParseStreamHeader(raw, size));
   if (info.components != expected_components) {
-    return MakeError(StatusCode::kCorrupt, "stream has ", info.components, " components, expected ", expected_components);
+    return MakeError(StatusCode::kCorrupt, "stream has ", info.components, " components, expected ",
+                     expected_components);
   }
   if (info.rows != expected_rows) {
     return MakeError(StatusCode::kCorrupt, "stream has ", info.rows, " rows, expected ", expected_rows);
@@ -173,9 +179,11 @@ Status CheckFiniteValues(const float* values, uint64_t rows, uint32_t components
   // Exponent all ones = Inf or NaN: a branch-free pass first (it vectorises), the
   // position only on failure.
   uint32_t bad = 0;
-  for (uint64_t i = 0; i < count; ++i) bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(values[i]) & 0x7F800000u) == 0x7F800000u);
+  for (uint64_t i = 0; i < count; ++i)
+    bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(values[i]) & 0x7F800000u) == 0x7F800000u);
   for (uint64_t i = 0; bad && i < count; ++i) {
-    if (!std::isfinite(values[i])) return NonFinite("stream", i / components, static_cast<uint32_t>(i % components), values[i]);
+    if (!std::isfinite(values[i]))
+      return NonFinite("stream", i / components, static_cast<uint32_t>(i % components), values[i]);
   }
   return Status::Ok();
 }
@@ -234,7 +242,8 @@ Status DecodeStreamValues(const uint8_t* raw, const StreamInfo& info, float* out
         }
       } else {
         for (size_t r = 0; r < rows; ++r) {
-          for (size_t c = 0; c < c_count; ++c) out[r * out_stride + c] = Dequantise(p[r * c_count + c], lo[c], range[c], lmax);
+          for (size_t c = 0; c < c_count; ++c)
+            out[r * out_stride + c] = Dequantise(p[r * c_count + c], lo[c], range[c], lmax);
         }
       }
       break;

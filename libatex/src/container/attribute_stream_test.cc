@@ -125,7 +125,8 @@ TEST(AttributeStream, ConstantComponentAndNoRows) {
 TEST(AttributeStream, EncodeRefusesNonFiniteAndHalfOverflow) {
   std::vector<float> v(12, 1.0f);
   v[7] = std::numeric_limits<float>::quiet_NaN();
-  for (ScalarEncoding e : {ScalarEncoding::kFloat32, ScalarEncoding::kFloat16, ScalarEncoding::kQuant16, ScalarEncoding::kQuant8}) {
+  for (ScalarEncoding e :
+       {ScalarEncoding::kFloat32, ScalarEncoding::kFloat16, ScalarEncoding::kQuant16, ScalarEncoding::kQuant8}) {
     auto raw = EncodeStream(v.data(), 4, 3, e, "rotations");
     ASSERT_FALSE(raw.ok());
     EXPECT_EQ(raw.status().code(), StatusCode::kOutOfRange);

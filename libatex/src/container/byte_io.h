@@ -13,7 +13,8 @@ namespace atex::container {
 
 template <typename T>
 T LoadLE(const uint8_t* p) {
-  static_assert(std::is_trivially_copyable_v<T> && (sizeof(T) == 1 || sizeof(T) == 2 || sizeof(T) == 4 || sizeof(T) == 8));
+  static_assert(std::is_trivially_copyable_v<T> &&
+                (sizeof(T) == 1 || sizeof(T) == 2 || sizeof(T) == 4 || sizeof(T) == 8));
   if constexpr (std::endian::native == std::endian::little) {
     T value;
     std::memcpy(&value, p, sizeof(T));

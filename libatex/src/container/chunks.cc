@@ -55,7 +55,8 @@ StatusOr<Metadata> DecodeMeta(const uint8_t* data, size_t size) {
     return MakeError(StatusCode::kCorrupt, "metadata JSON starts with a byte-order mark");
   }
   if (JsonDepth(data, size, limits::kMaxJsonDepth) > limits::kMaxJsonDepth) {
-    return MakeError(StatusCode::kLimitExceeded, "metadata JSON is nested deeper than ", limits::kMaxJsonDepth, " levels");
+    return MakeError(StatusCode::kLimitExceeded, "metadata JSON is nested deeper than ", limits::kMaxJsonDepth,
+                     " levels");
   }
   nlohmann::json json;
   try {
@@ -80,7 +81,8 @@ StatusOr<GaussianHeader> DecodeGhdr(const uint8_t* data, size_t size) {
   GaussianHeader h;
   h.count = LoadLE<uint64_t>(data);
   h.sh_degree = data[8];
-  if (h.sh_degree > kMaxShDegree) return MakeError(StatusCode::kOutOfRange, "SH degree ", h.sh_degree, " (byte 8) is above 3");
+  if (h.sh_degree > kMaxShDegree)
+    return MakeError(StatusCode::kOutOfRange, "SH degree ", h.sh_degree, " (byte 8) is above 3");
   for (int i = 9; i < 16; ++i) {
     if (data[i] != 0) return MakeError(StatusCode::kCorrupt, "GHDR reserved byte ", i, " is not zero");
   }
@@ -184,7 +186,8 @@ StatusOr<DeformationConfig> DecodeDeformationConfig(const uint8_t* data, size_t 
   ATEX_RETURN_IF_ERROR(range("trunk_layers", 60, u32(60), 1, limits::kMaxTrunkLayers));
   c.trunk_layers = static_cast<int>(u32(60));
   const uint32_t mask = u32(64);
-  if (mask >> kNumDeformHeads) return MakeError(StatusCode::kOutOfRange, "DCFG head_mask (byte 64) = ", mask, " uses bits above 4");
+  if (mask >> kNumDeformHeads)
+    return MakeError(StatusCode::kOutOfRange, "DCFG head_mask (byte 64) = ", mask, " uses bits above 4");
   for (int h = 0; h < kNumDeformHeads; ++h) c.heads[h] = (mask >> h) & 1u;
   const uint32_t k = u32(68);
   if (k != 1 && k != 4 && k != 9 && k != 16) {

@@ -162,9 +162,11 @@ TEST(MetaChunk, RoundTripAndLimits) {
   const std::string bom = "\xEF\xBB\xBF{}";
   EXPECT_EQ(DecodeMeta(reinterpret_cast<const uint8_t*>(bom.data()), bom.size()).status().code(), StatusCode::kCorrupt);
   const std::string broken = "{\"axes\": ";
-  EXPECT_EQ(DecodeMeta(reinterpret_cast<const uint8_t*>(broken.data()), broken.size()).status().code(), StatusCode::kCorrupt);
+  EXPECT_EQ(DecodeMeta(reinterpret_cast<const uint8_t*>(broken.data()), broken.size()).status().code(),
+            StatusCode::kCorrupt);
   const std::string bad_utf8 = "{\"units\": \"\xC3\x28\"}";
-  EXPECT_EQ(DecodeMeta(reinterpret_cast<const uint8_t*>(bad_utf8.data()), bad_utf8.size()).status().code(), StatusCode::kCorrupt);
+  EXPECT_EQ(DecodeMeta(reinterpret_cast<const uint8_t*>(bad_utf8.data()), bad_utf8.size()).status().code(),
+            StatusCode::kCorrupt);
 }
 
 TEST(GaussianHeaderChunk, LayoutAndChecks) {

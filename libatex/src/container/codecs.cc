@@ -83,7 +83,8 @@ StatusOr<std::vector<uint8_t>> ZstdCompress(const uint8_t* data, size_t size, in
 StatusOr<ChunkBytes> ZstdDecompress(const uint8_t* stored, size_t stored_size, uint64_t raw_size) {
   std::unique_ptr<ZSTD_DCtx, DCtxDeleter> dctx(ZSTD_createDCtx());
   if (!dctx) return MakeError(StatusCode::kInternal, "ZSTD_createDCtx failed");
-  if (raw_size >= (uint64_t{1} << 62)) return MakeError(StatusCode::kLimitExceeded, "raw size ", raw_size, " is too large");
+  if (raw_size >= (uint64_t{1} << 62))
+    return MakeError(StatusCode::kLimitExceeded, "raw size ", raw_size, " is too large");
   // One byte beyond raw_size lets us notice output that is too long.
   const uint64_t limit = raw_size + 1;
   ChunkBytes out = ChunkBytes::Allocate(static_cast<size_t>(std::min<uint64_t>(limit, kInitialOutput)));
@@ -125,7 +126,8 @@ StatusOr<std::vector<uint8_t>> DecodeChunkPrefix(const uint8_t* stored, size_t s
   ATEX_RETURN_IF_ERROR(CheckCodecParams(p, raw_size));
   n = static_cast<size_t>(std::min<uint64_t>(n, raw_size));
   // Only the untransformed prefix (codec_skip bytes) reads back as content.
-  if ((p.codec == Codec::kShuffleZstd || p.codec == Codec::kDeltaShuffleZstd || p.codec == Codec::kDraco) && n > p.skip) {
+  if ((p.codec == Codec::kShuffleZstd || p.codec == Codec::kDeltaShuffleZstd || p.codec == Codec::kDraco) &&
+      n > p.skip) {
     return MakeError(StatusCode::kInvalidArgument, "only the first ", p.skip, " bytes can be read without decoding");
   }
   if (p.codec == Codec::kRaw || p.codec == Codec::kDraco) {
@@ -280,7 +282,8 @@ StatusOr<std::vector<uint8_t>> EncodeChunk(const uint8_t* raw, size_t raw_size, 
     case Codec::kDraco:
       break;
   }
-  return MakeError(StatusCode::kInvalidArgument, "EncodeChunk does not handle codec ", int{static_cast<uint8_t>(p.codec)});
+  return MakeError(StatusCode::kInvalidArgument, "EncodeChunk does not handle codec ",
+                   int{static_cast<uint8_t>(p.codec)});
 }
 
 StatusOr<ChunkBytes> DecodeZstdStage(const uint8_t* stored, size_t stored_size, uint64_t raw_size,
@@ -309,7 +312,8 @@ StatusOr<ChunkBytes> DecodeChunk(const uint8_t* stored, size_t stored_size, uint
       ChunkBytes raw = ChunkBytes::Allocate(transformed.size());
       CopyBytes(raw.mutable_data(), transformed.data(), p.skip);
       UnshuffleBytes(transformed.data() + p.skip, body, p.element_size, raw.mutable_data() + p.skip);
-      if (p.codec == Codec::kDeltaShuffleZstd) DeltaDecode(raw.mutable_data() + p.skip, body, p.element_size, p.components);
+      if (p.codec == Codec::kDeltaShuffleZstd)
+        DeltaDecode(raw.mutable_data() + p.skip, body, p.element_size, p.components);
       return raw;
     }
     case Codec::kDraco:

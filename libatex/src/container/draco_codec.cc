@@ -19,8 +19,10 @@ namespace atex::container {
 bool HaveDraco() { return true; }
 
 StatusOr<std::vector<uint8_t>> DracoEncodePositions(const float* xyz, size_t n, int bits) {
-  if (bits < 1 || bits > 30) return MakeError(StatusCode::kInvalidArgument, "Draco position bits ", bits, " outside 1..30");
-  if (n == 0 || n > 0x7FFFFFFFu) return MakeError(StatusCode::kInvalidArgument, "Draco needs 1..2^31-1 points, got ", n);
+  if (bits < 1 || bits > 30)
+    return MakeError(StatusCode::kInvalidArgument, "Draco position bits ", bits, " outside 1..30");
+  if (n == 0 || n > 0x7FFFFFFFu)
+    return MakeError(StatusCode::kInvalidArgument, "Draco needs 1..2^31-1 points, got ", n);
   try {
     draco::PointCloudBuilder builder;
     builder.Start(static_cast<draco::PointIndex::ValueType>(n));

@@ -36,7 +36,23 @@ inline constexpr uint64_t kDcfgSize = 104;
 inline constexpr int kDcfgMaxScales = 8;
 
 // Chunk types of version 1.0, in the order writers emit them.
-enum class ChunkId : int { kMeta, kGhdr, kGpos, kGrot, kGscl, kGopa, kGsh0, kGshr, kTlay, kTexl, kDcfg, kDgrd, kDmlp, kGsta, kCount };
+enum class ChunkId : int {
+  kMeta,
+  kGhdr,
+  kGpos,
+  kGrot,
+  kGscl,
+  kGopa,
+  kGsh0,
+  kGshr,
+  kTlay,
+  kTexl,
+  kDcfg,
+  kDgrd,
+  kDmlp,
+  kGsta,
+  kCount
+};
 
 struct ChunkTypeInfo {
   const char* type;       // four characters

@@ -71,8 +71,8 @@ StatusOr<ScalarEncoding> StreamEncodingOf(const uint8_t* data, size_t size, cons
     return MakeError(StatusCode::kInvalidArgument, "chunk '", chunk.type, "' lies outside the given bytes");
   }
   const container::CodecParams params{chunk.codec, chunk.codec_param, chunk.codec_components, chunk.codec_skip};
-  auto prefix = container::DecodeChunkPrefix(data + chunk.offset, static_cast<size_t>(chunk.stored_size), chunk.raw_size,
-                                             params, 1);
+  auto prefix = container::DecodeChunkPrefix(data + chunk.offset, static_cast<size_t>(chunk.stored_size),
+                                             chunk.raw_size, params, 1);
   if (!prefix.ok()) return prefix.status().WithContext(StrCat("chunk '", chunk.type, "'"));
   if (prefix->empty() || (*prefix)[0] > static_cast<uint8_t>(ScalarEncoding::kQuant8)) {
     return MakeError(StatusCode::kCorrupt, "chunk '", chunk.type, "' has no valid stream encoding byte");

@@ -86,7 +86,8 @@ StatusOr<ParsedContainer> ParseContainer(const uint8_t* data, size_t size, bool 
                        " but header and TOC hash to ", actual);
     }
   }
-  if (c.flags != 0) return MakeError(StatusCode::kCorrupt, "file flags (byte 12) are ", c.flags, "; all bits are reserved");
+  if (c.flags != 0)
+    return MakeError(StatusCode::kCorrupt, "file flags (byte 12) are ", c.flags, "; all bits are reserved");
 
   c.entries.resize(count);
   std::set<std::string> seen;
@@ -112,7 +113,8 @@ StatusOr<ParsedContainer> ParseContainer(const uint8_t* data, size_t size, bool 
     t.codec.components = LoadLE<uint32_t>(e + kTocComponents);
     t.codec.skip = LoadLE<uint32_t>(e + kTocSkip);
     const std::string where = StrCat("TOC entry #", i, " '", t.type, "' (byte ", at, ")");
-    if (LoadLE<uint32_t>(e + kTocReserved) != 0) return MakeError(StatusCode::kCorrupt, where, ": reserved bytes 44-47 are not zero");
+    if (LoadLE<uint32_t>(e + kTocReserved) != 0)
+      return MakeError(StatusCode::kCorrupt, where, ": reserved bytes 44-47 are not zero");
     if ((t.flags & ~kChunkCritical) != 0) {
       return MakeError(StatusCode::kCorrupt, where, ": chunk flags ", t.flags, " use reserved bits");
     }

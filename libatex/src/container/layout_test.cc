@@ -53,7 +53,8 @@ TEST(Layout, AssembledFileIsCanonical) {
   EXPECT_EQ(parsed->version_major, 1);
   EXPECT_EQ(parsed->version_minor, 0);
   // Header bytes by the spec.
-  EXPECT_EQ((std::vector<uint8_t>(f.begin(), f.begin() + 8)), (std::vector<uint8_t>{0x89, 0x41, 0x54, 0x45, 0x58, 0x0D, 0x0A, 0x1A}));
+  EXPECT_EQ((std::vector<uint8_t>(f.begin(), f.begin() + 8)),
+            (std::vector<uint8_t>{0x89, 0x41, 0x54, 0x45, 0x58, 0x0D, 0x0A, 0x1A}));
   EXPECT_EQ(LoadLE<uint64_t>(f.data() + 16), 200u);
   EXPECT_EQ(LoadLE<uint32_t>(f.data() + 24), 3u);
 }
@@ -124,20 +125,47 @@ TEST(Layout, StructuralRules) {
       {"chunk flag bit 1", [](std::vector<uint8_t>& f) { f[32 + 4] |= 2; }, StatusCode::kCorrupt},
       {"lower-case type", [](std::vector<uint8_t>& f) { f[32] = 'a'; }, StatusCode::kCorrupt},
       {"space in type", [](std::vector<uint8_t>& f) { f[32 + 3] = ' '; }, StatusCode::kCorrupt},
-      {"duplicate type", [](std::vector<uint8_t>& f) { std::copy(f.begin() + 32, f.begin() + 36, f.begin() + 80); }, StatusCode::kCorrupt},
-      {"offset shifted", [](std::vector<uint8_t>& f) { StoreLE<uint64_t>(f.data() + 80 + 8, 192); }, StatusCode::kCorrupt},
-      {"offset unaligned", [](std::vector<uint8_t>& f) { StoreLE<uint64_t>(f.data() + 32 + 8, 177); }, StatusCode::kCorrupt},
-      {"stored beyond file", [](std::vector<uint8_t>& f) { StoreLE<uint64_t>(f.data() + 128 + 16, 1u << 20); StoreLE<uint64_t>(f.data() + 128 + 24, 1u << 20); }, StatusCode::kCorrupt},
-      {"stored overflow", [](std::vector<uint8_t>& f) { StoreLE<uint64_t>(f.data() + 128 + 16, ~uint64_t{0}); }, StatusCode::kCorrupt},
-      {"raw size differs for raw", [](std::vector<uint8_t>& f) { StoreLE<uint64_t>(f.data() + 32 + 24, 6); }, StatusCode::kCorrupt},
+      {"duplicate type", [](std::vector<uint8_t>& f) { std::copy(f.begin() + 32, f.begin() + 36, f.begin() + 80); },
+       StatusCode::kCorrupt},
+      {"offset shifted", [](std::vector<uint8_t>& f) { StoreLE<uint64_t>(f.data() + 80 + 8, 192); },
+       StatusCode::kCorrupt},
+      {"offset unaligned", [](std::vector<uint8_t>& f) { StoreLE<uint64_t>(f.data() + 32 + 8, 177); },
+       StatusCode::kCorrupt},
+      {"stored beyond file",
+       [](std::vector<uint8_t>& f) {
+         StoreLE<uint64_t>(f.data() + 128 + 16, 1u << 20);
+         StoreLE<uint64_t>(f.data() + 128 + 24, 1u << 20);
+       },
+       StatusCode::kCorrupt},
+      {"stored overflow", [](std::vector<uint8_t>& f) { StoreLE<uint64_t>(f.data() + 128 + 16, ~uint64_t{0}); },
+       StatusCode::kCorrupt},
+      {"raw size differs for raw", [](std::vector<uint8_t>& f) { StoreLE<uint64_t>(f.data() + 32 + 24, 6); },
+       StatusCode::kCorrupt},
       {"padding not zero", [](std::vector<uint8_t>& f) { f[176 + 6] = 1; }, StatusCode::kCorrupt},
       {"last padding not zero", [](std::vector<uint8_t>& f) { f[199] = 1; }, StatusCode::kCorrupt},
-      {"chunk count too big", [](std::vector<uint8_t>& f) { StoreLE<uint32_t>(f.data() + 24, 4); }, StatusCode::kCorrupt},
-      {"chunk count huge", [](std::vector<uint8_t>& f) { StoreLE<uint32_t>(f.data() + 24, 0xFFFFFFFFu); }, StatusCode::kCorrupt},
-      {"chunk count small (gap at end)", [](std::vector<uint8_t>& f) { StoreLE<uint32_t>(f.data() + 24, 2); }, StatusCode::kCorrupt},
-      {"zstd with an element size", [](std::vector<uint8_t>& f) { f[80 + 6] = 1; f[80 + 7] = 4; }, StatusCode::kCorrupt},
-      {"known type wrong critical bit", [](std::vector<uint8_t>& f) { std::memcpy(f.data() + 32, "GSTA", 4); }, StatusCode::kCorrupt},
-      {"draco outside GPOS", [](std::vector<uint8_t>& f) { f[128 + 6] = 4; f[128 + 7] = 4; StoreLE<uint32_t>(f.data() + 128 + 36, 3); StoreLE<uint32_t>(f.data() + 128 + 40, 1); StoreLE<uint64_t>(f.data() + 128 + 24, 13); }, StatusCode::kCorrupt},
+      {"chunk count too big", [](std::vector<uint8_t>& f) { StoreLE<uint32_t>(f.data() + 24, 4); },
+       StatusCode::kCorrupt},
+      {"chunk count huge", [](std::vector<uint8_t>& f) { StoreLE<uint32_t>(f.data() + 24, 0xFFFFFFFFu); },
+       StatusCode::kCorrupt},
+      {"chunk count small (gap at end)", [](std::vector<uint8_t>& f) { StoreLE<uint32_t>(f.data() + 24, 2); },
+       StatusCode::kCorrupt},
+      {"zstd with an element size",
+       [](std::vector<uint8_t>& f) {
+         f[80 + 6] = 1;
+         f[80 + 7] = 4;
+       },
+       StatusCode::kCorrupt},
+      {"known type wrong critical bit", [](std::vector<uint8_t>& f) { std::memcpy(f.data() + 32, "GSTA", 4); },
+       StatusCode::kCorrupt},
+      {"draco outside GPOS",
+       [](std::vector<uint8_t>& f) {
+         f[128 + 6] = 4;
+         f[128 + 7] = 4;
+         StoreLE<uint32_t>(f.data() + 128 + 36, 3);
+         StoreLE<uint32_t>(f.data() + 128 + 40, 1);
+         StoreLE<uint64_t>(f.data() + 128 + 24, 13);
+       },
+       StatusCode::kCorrupt},
   };
   for (const Edit& e : edits) {
     auto f = Sample();

@@ -213,7 +213,8 @@ TEST(RoundTrip, DracoPositions) {
   EXPECT_TRUE(testing::AssetsNear(asset, back, t));
   // Order is preserved: the nearest decoded point to each original is itself.
   for (size_t i = 0; i < 2000; i += 97) {
-    for (int a = 0; a < 3; ++a) ASSERT_NEAR(back.gaussians.positions[i * 3 + a], asset.gaussians.positions[i * 3 + a], t.positions);
+    for (int a = 0; a < 3; ++a)
+      ASSERT_NEAR(back.gaussians.positions[i * 3 + a], asset.gaussians.positions[i * 3 + a], t.positions);
   }
   // Deterministic, and valid with 0 and 1 Gaussians (0 falls back to a stream).
   auto again = EncodeAsset(asset, w);

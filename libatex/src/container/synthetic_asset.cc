@@ -127,7 +127,8 @@ Asset MakeSyntheticAsset(const SyntheticAssetOptions& o) {
       }
     }
     d.trunk.resize(c.trunk_layers);
-    for (int l = 0; l < c.trunk_layers; ++l) FillLinear(r, &d.trunk[l], l == 0 ? c.grid.feature_dim() : c.mlp_width, c.mlp_width);
+    for (int l = 0; l < c.trunk_layers; ++l)
+      FillLinear(r, &d.trunk[l], l == 0 ? c.grid.feature_dim() : c.mlp_width, c.mlp_width);
     for (int h = 0; h < kNumDeformHeads; ++h) {
       if (!c.heads[h]) continue;
       FillLinear(r, &d.heads[h][0], c.mlp_width, c.mlp_width);

@@ -48,7 +48,8 @@ TEST(Crc32c, AgreesWithBitwiseReferenceAtEveryLengthAndAlignment) {
     for (size_t len = 0; start + len <= data.size(); len += 1 + len / 8) {
       const uint32_t expected = BitwiseCrc32c(data.data() + start, len);
       ASSERT_EQ(Crc32c(data.data() + start, len), expected) << "start " << start << " len " << len;
-      ASSERT_EQ(detail::Crc32cPortableForTesting(data.data() + start, len), expected) << "start " << start << " len " << len;
+      ASSERT_EQ(detail::Crc32cPortableForTesting(data.data() + start, len), expected)
+          << "start " << start << " len " << len;
     }
   }
 }

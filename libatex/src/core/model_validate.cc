@@ -69,7 +69,8 @@ Status ValidateTextures(const TexturePool& t, size_t n) {
   ATEX_RETURN_IF_ERROR(CheckSize("texture axis_u", t.axis_u.size(), n));
   ATEX_RETURN_IF_ERROR(CheckSize("texture axis_v", t.axis_v.size(), n));
   ATEX_RETURN_IF_ERROR(CheckSize("texture offsets", t.offsets.size(), n + 1));
-  if (t.offsets[0] != 0) return MakeError(StatusCode::kInvalidArgument, "texture offsets[0] is ", t.offsets[0], ", not 0");
+  if (t.offsets[0] != 0)
+    return MakeError(StatusCode::kInvalidArgument, "texture offsets[0] is ", t.offsets[0], ", not 0");
   for (size_t i = 0; i < n; ++i) {
     if (!ValidSide(t.heights[i]) || !ValidSide(t.widths[i])) {
       return MakeError(StatusCode::kOutOfRange, "texture of Gaussian ", i, " is ", int{t.heights[i]}, "x",
@@ -91,7 +92,8 @@ Status ValidateTextures(const TexturePool& t, size_t n) {
 Status ValidateDeformationConfig(const DeformationConfig& c, int gaussian_sh_coeffs) {
   const HexPlaneConfig& g = c.grid;
   if (g.channels < 1 || g.channels > limits::kMaxChannels) {
-    return MakeError(StatusCode::kOutOfRange, "deformation channels ", g.channels, " outside 1..", limits::kMaxChannels);
+    return MakeError(StatusCode::kOutOfRange, "deformation channels ", g.channels, " outside 1..",
+                     limits::kMaxChannels);
   }
   for (int a = 0; a < 4; ++a) {
     if (g.base_resolution[a] < 1 || g.base_resolution[a] > limits::kMaxBaseResolution) {
@@ -116,7 +118,8 @@ Status ValidateDeformationConfig(const DeformationConfig& c, int gaussian_sh_coe
     }
   }
   if (c.mlp_width < 1 || c.mlp_width > limits::kMaxMlpWidth) {
-    return MakeError(StatusCode::kOutOfRange, "deformation mlp_width ", c.mlp_width, " outside 1..", limits::kMaxMlpWidth);
+    return MakeError(StatusCode::kOutOfRange, "deformation mlp_width ", c.mlp_width, " outside 1..",
+                     limits::kMaxMlpWidth);
   }
   if (c.trunk_layers < 1 || c.trunk_layers > limits::kMaxTrunkLayers) {
     return MakeError(StatusCode::kOutOfRange, "deformation trunk_layers ", c.trunk_layers, " outside 1..",
@@ -134,7 +137,8 @@ Status ValidateDeformationConfig(const DeformationConfig& c, int gaussian_sh_coe
       return MakeError(StatusCode::kOutOfRange, "deformation AABB axis ", a, " is not finite");
     }
     if (c.aabb_lo[a] == c.aabb_hi[a]) {
-      return MakeError(StatusCode::kOutOfRange, "deformation AABB axis ", a, " is empty (lo == hi == ", c.aabb_lo[a], ")");
+      return MakeError(StatusCode::kOutOfRange, "deformation AABB axis ", a, " is empty (lo == hi == ", c.aabb_lo[a],
+                       ")");
     }
   }
   if (!std::isfinite(c.time_scale) || !std::isfinite(c.time_offset)) {
@@ -145,7 +149,8 @@ Status ValidateDeformationConfig(const DeformationConfig& c, int gaussian_sh_coe
 
 Status ValidateLinear(const std::string& name, const Linear& layer, int in, int out) {
   if (layer.in != in || layer.out != out) {
-    return MakeError(StatusCode::kInvalidArgument, name, " is ", layer.in, "->", layer.out, ", expected ", in, "->", out);
+    return MakeError(StatusCode::kInvalidArgument, name, " is ", layer.in, "->", layer.out, ", expected ", in, "->",
+                     out);
   }
   ATEX_RETURN_IF_ERROR(
       CheckArray((name + " weight").c_str(), layer.weight, static_cast<size_t>(out), in, limits::kMaxAbsNetworkValue));
@@ -240,7 +245,8 @@ Status ValidateJsonValue(const nlohmann::json& value, int depth, const std::stri
   }
   if (value.is_object()) {
     for (auto it = value.begin(); it != value.end(); ++it) {
-      if (!IsValidUtf8(it.key())) return MakeError(StatusCode::kInvalidArgument, "metadata ", where, " has a key that is not UTF-8");
+      if (!IsValidUtf8(it.key()))
+        return MakeError(StatusCode::kInvalidArgument, "metadata ", where, " has a key that is not UTF-8");
       ATEX_RETURN_IF_ERROR(ValidateJsonValue(it.value(), depth + 1, where + "." + it.key()));
     }
   } else if (value.is_array()) {
@@ -261,7 +267,8 @@ Status ValidateMetadata(const Metadata& m, const Asset& asset) {
                        m.bounds_max[a]);
     }
     if (!(m.background[a] >= 0.0f && m.background[a] <= 1.0f)) {
-      return MakeError(StatusCode::kOutOfRange, "metadata background[", a, "] = ", m.background[a], " is outside [0, 1]");
+      return MakeError(StatusCode::kOutOfRange, "metadata background[", a, "] = ", m.background[a],
+                       " is outside [0, 1]");
     }
   }
   if (!std::isfinite(m.time_min) || !std::isfinite(m.time_max) || m.time_min > m.time_max) {

@@ -21,13 +21,15 @@ std::string LegacyUpAxis(std::string_view axes) {
 StatusOr<std::string> WorldUpAxis(const Metadata& metadata) {
   if (!metadata.up.empty()) {
     if (!IsUpAxisName(metadata.up)) {
-      return MakeError(StatusCode::kInvalidArgument, "metadata.up '", metadata.up, "' is not one of +x, -x, +y, -y, +z, -z");
+      return MakeError(StatusCode::kInvalidArgument, "metadata.up '", metadata.up,
+                       "' is not one of +x, -x, +y, -y, +z, -z");
     }
     return metadata.up;
   }
   std::string legacy = LegacyUpAxis(metadata.axes);
   if (legacy.empty()) {
-    return MakeError(StatusCode::kInvalidArgument, "the asset records no metadata.up and metadata.axes '", metadata.axes,
+    return MakeError(StatusCode::kInvalidArgument, "the asset records no metadata.up and metadata.axes '",
+                     metadata.axes,
                      "' does not say which way is up; pass an explicit up axis (+x, -x, +y, -y, +z, -z)");
   }
   return legacy;

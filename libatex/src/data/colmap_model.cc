@@ -128,7 +128,8 @@ StatusOr<std::vector<ColmapCamera>> ParseColmapCamerasText(std::string_view text
       }
       camera.params.push_back(v);
     }
-    if (cameras.size() >= kMaxRecords) return MakeError(StatusCode::kLimitExceeded, what, ": more than ", kMaxRecords, " cameras");
+    if (cameras.size() >= kMaxRecords)
+      return MakeError(StatusCode::kLimitExceeded, what, ": more than ", kMaxRecords, " cameras");
     cameras.push_back(std::move(camera));
   }
   return cameras;
@@ -210,7 +211,8 @@ StatusOr<std::vector<ColmapImage>> ParseColmapImagesText(std::string_view text, 
                          ": 2D points are not (X Y POINT3D_ID) triples");
       }
     }
-    if (images.size() >= kMaxRecords) return MakeError(StatusCode::kLimitExceeded, what, ": more than ", kMaxRecords, " images");
+    if (images.size() >= kMaxRecords)
+      return MakeError(StatusCode::kLimitExceeded, what, ": more than ", kMaxRecords, " images");
     images.push_back(std::move(image));
   }
   return images;

@@ -64,8 +64,9 @@ Dataset::Dataset(std::string name, DatasetKind kind, const DatasetOptions& optio
       cache_(std::make_shared<ImageCache>(cache_limit_)) {
   // A cache larger than the machine degrades to half its RAM: images beyond it reload.
   if (cache_limit_ < options.image_cache_bytes) {
-    warnings_.push_back(StrCat("image cache limited to ", cache_limit_ >> 20, " MiB (half the machine's RAM) instead of ",
-                               options.image_cache_bytes >> 20, " MiB; images beyond it are decoded again when needed"));
+    warnings_.push_back(StrCat("image cache limited to ", cache_limit_ >> 20,
+                               " MiB (half the machine's RAM) instead of ", options.image_cache_bytes >> 20,
+                               " MiB; images beyond it are decoded again when needed"));
   }
 }
 

@@ -103,7 +103,8 @@ class ColmapDataset final : public Dataset {
       ATEX_ASSIGN_OR_RETURN(const auto k, ColmapPinholeIntrinsics(*camera, cameras_path));
       ATEX_ASSIGN_OR_RETURN(const auto w2c, ColmapWorldToCamera(image, images_path));
       const fs::path file = (image_dir / image.name).lexically_normal();
-      if (!fs::is_regular_file(file, ec)) return MakeError(StatusCode::kNotFound, at, ": no image file ", file.string());
+      if (!fs::is_regular_file(file, ec))
+        return MakeError(StatusCode::kNotFound, at, ": no image file ", file.string());
       View view;
       view.camera.width = static_cast<int>(camera->width);
       view.camera.height = static_cast<int>(camera->height);

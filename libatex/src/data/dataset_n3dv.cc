@@ -186,11 +186,12 @@ class N3dvDataset final : public Dataset {
   StatusOr<ImageInfo> DecodeVideos(const std::vector<fs::path>& videos, const DatasetOptions& options,
                                    size_t* fewest, size_t* most) {
     if (!VideoDecodingAvailable()) {
-      return MakeError(StatusCode::kUnsupported, root_.string(),
-                       ": N3DV from camNN.mp4 needs FFmpeg and this build is without FFmpeg (install "
-                       "libavformat-dev libavcodec-dev libswscale-dev libavutil-dev and rebuild), or extract the frames "
-                       "first: "
-                       "ffmpeg -i cam00.mp4 cam00/images/%04d.png for each camera");
+      return MakeError(
+          StatusCode::kUnsupported, root_.string(),
+          ": N3DV from camNN.mp4 needs FFmpeg and this build is without FFmpeg (install "
+          "libavformat-dev libavcodec-dev libswscale-dev libavutil-dev and rebuild), or extract the frames "
+          "first: "
+          "ffmpeg -i cam00.mp4 cam00/images/%04d.png for each camera");
     }
     images_prescaled_ = true;
     ImageInfo info;
@@ -198,26 +199,28 @@ class N3dvDataset final : public Dataset {
     uint64_t bytes = 0;
     for (size_t c = 0; c < videos.size(); ++c) {
       const std::string path = videos[c].string();
-      StatusOr<int64_t> count = DecodeVideoFrames(path, options.max_timesteps, [&](int64_t index, Image full) -> Status {
-        if (c == 0 && index == 0) info = ImageInfo{full.width, full.height, 3};
-        if (full.width != info.width || full.height != info.height) {
-          return MakeError(StatusCode::kCorrupt, path, ": frame ", index, " is ", full.width, "x", full.height,
-                           ", the first camera's frames are ", info.width, "x", info.height);
-        }
-        ATEX_ASSIGN_OR_RETURN(const Image small, DownscaleImage(full, downscale_));
-        bytes += small.pixels.size();
-        if (bytes > options.image_cache_bytes) {
-          return MakeError(StatusCode::kLimitExceeded, path, ": decoded frames need more than the image cache's ",
-                           options.image_cache_bytes >> 20, " MiB at frame ", index,
-                           " (decoded videos stay in memory: use --timesteps or --downscale, or extract the frames)");
-        }
-        VideoFrame frame{small.width, small.height, std::vector<uint8_t>(small.pixels.size())};
-        for (size_t k = 0; k < small.pixels.size(); ++k) {
-          frame.rgb[k] = static_cast<uint8_t>(std::lround(std::clamp(small.pixels[k], 0.0f, 1.0f) * 255.0f));
-        }
-        decoded[c].push_back(std::move(frame));
-        return Status::Ok();
-      });
+      StatusOr<int64_t> count =
+          DecodeVideoFrames(path, options.max_timesteps, [&](int64_t index, Image full) -> Status {
+            if (c == 0 && index == 0) info = ImageInfo{full.width, full.height, 3};
+            if (full.width != info.width || full.height != info.height) {
+              return MakeError(StatusCode::kCorrupt, path, ": frame ", index, " is ", full.width, "x", full.height,
+                               ", the first camera's frames are ", info.width, "x", info.height);
+            }
+            ATEX_ASSIGN_OR_RETURN(const Image small, DownscaleImage(full, downscale_));
+            bytes += small.pixels.size();
+            if (bytes > options.image_cache_bytes) {
+              return MakeError(
+                  StatusCode::kLimitExceeded, path, ": decoded frames need more than the image cache's ",
+                  options.image_cache_bytes >> 20, " MiB at frame ", index,
+                  " (decoded videos stay in memory: use --timesteps or --downscale, or extract the frames)");
+            }
+            VideoFrame frame{small.width, small.height, std::vector<uint8_t>(small.pixels.size())};
+            for (size_t k = 0; k < small.pixels.size(); ++k) {
+              frame.rgb[k] = static_cast<uint8_t>(std::lround(std::clamp(small.pixels[k], 0.0f, 1.0f) * 255.0f));
+            }
+            decoded[c].push_back(std::move(frame));
+            return Status::Ok();
+          });
       if (!count.ok()) return count.status();
     }
     *fewest = SIZE_MAX;

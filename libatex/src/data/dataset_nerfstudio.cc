@@ -71,7 +71,8 @@ class NerfstudioDataset final : public Dataset {
         frames.emplace_back(f, test.count(f.camera_id) ? 1 : 0);
       }
       for (int id : test) {
-        if (!present.count(id)) return MakeError(StatusCode::kNotFound, file_.string(), ": no frame of test camera ", id);
+        if (!present.count(id))
+          return MakeError(StatusCode::kNotFound, file_.string(), ": no frame of test camera ", id);
       }
     } else if (fs::is_regular_file(test_file, ec) && file_.filename() != "transforms_test.json") {
       ATEX_ASSIGN_OR_RETURN(TransformsFile test, ReadTransformsFile(test_file));
@@ -151,7 +152,8 @@ class NerfstudioDataset final : public Dataset {
 
   Status MakeViews(const std::vector<std::pair<TransformsFrame, int>>& frames) {
     ATEX_ASSIGN_OR_RETURN(const std::vector<double> times, FrameTimes(frames));
-    const bool multi_camera = std::all_of(frames.begin(), frames.end(), [](const auto& f) { return f.first.camera_id >= 0; });
+    const bool multi_camera =
+        std::all_of(frames.begin(), frames.end(), [](const auto& f) { return f.first.camera_id >= 0; });
     std::map<double, int> time_rank;
     for (double t : times) time_rank.emplace(t, 0);
     int rank = 0;
@@ -202,7 +204,8 @@ class NerfstudioDataset final : public Dataset {
       view.image = image.string();
       if (!f.mask_path.empty()) {
         const fs::path mask = (root_ / f.mask_path).lexically_normal();
-        if (!fs::is_regular_file(mask, ec)) return MakeError(StatusCode::kNotFound, at, ".mask_path: no file ", mask.string());
+        if (!fs::is_regular_file(mask, ec))
+          return MakeError(StatusCode::kNotFound, at, ".mask_path: no file ", mask.string());
         view.mask = mask.string();
         has_masks_ = true;
       } else if (alpha) {

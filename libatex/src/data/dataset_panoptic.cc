@@ -141,7 +141,8 @@ class PanopticDataset final : public Dataset {
         }
       }
       for (int id : wanted) {
-        if (!seen.count(id)) return MakeError(StatusCode::kNotFound, root_.string(), ": test camera ", id, " not in the metas");
+        if (!seen.count(id))
+          return MakeError(StatusCode::kNotFound, root_.string(), ": test camera ", id, " not in the metas");
       }
     }
 
@@ -151,7 +152,8 @@ class PanopticDataset final : public Dataset {
     for (; steps < meta_steps; ++steps) {
       for (const auto* split : {&train_steps[steps], &test_steps[steps]}) {
         for (const MetaEntry& e : *split) {
-          if (first_missing.empty() && !fs::exists(root_ / "ims" / e.fn)) first_missing = (root_ / "ims" / e.fn).string();
+          if (first_missing.empty() && !fs::exists(root_ / "ims" / e.fn))
+            first_missing = (root_ / "ims" / e.fn).string();
         }
       }
       if (!first_missing.empty()) break;

@@ -142,16 +142,20 @@ TEST(Panoptic, OptionsDownscaleTimestepsAndTestCameras) {
 
 TEST(Panoptic, MalformedMetasAreErrors) {
   testing::TempDir dir;
-  const std::string good_entry = R"("k": [[[[100,0,8],[0,100,6],[0,0,1]]]], "w2c": [[[[1,0,0,0],[0,1,0,0],[0,0,1,2],[0,0,0,1]]]])";
-  WriteText(dir / "test_meta.json", "{\"w\": 16, \"h\": 12, " + good_entry + R"(, "fn": [["0/000000.jpg"]], "cam_id": [[0]]})");
-  WriteText(dir / "train_meta.json", "{\"w\": 16, \"h\": 12, " + good_entry + R"(, "fn": [["../../etc/passwd"]], "cam_id": [[1]]})");
+  const std::string good_entry =
+      R"("k": [[[[100,0,8],[0,100,6],[0,0,1]]]], "w2c": [[[[1,0,0,0],[0,1,0,0],[0,0,1,2],[0,0,0,1]]]])";
+  WriteText(dir / "test_meta.json",
+            "{\"w\": 16, \"h\": 12, " + good_entry + R"(, "fn": [["0/000000.jpg"]], "cam_id": [[0]]})");
+  WriteText(dir / "train_meta.json",
+            "{\"w\": 16, \"h\": 12, " + good_entry + R"(, "fn": [["../../etc/passwd"]], "cam_id": [[1]]})");
   EXPECT_EQ(OpenDataset(dir.path().string()).status().code(), StatusCode::kCorrupt);
   WriteText(dir / "train_meta.json", R"({"w": 16, "h": 12, "k": [], "w2c": [[]], "fn": [], "cam_id": []})");
   EXPECT_EQ(OpenDataset(dir.path().string()).status().code(), StatusCode::kCorrupt);
   WriteText(dir / "train_meta.json", R"({"w": 16, "h": )");
   EXPECT_EQ(OpenDataset(dir.path().string()).status().code(), StatusCode::kCorrupt);
   // Well-formed but no images at all.
-  WriteText(dir / "train_meta.json", "{\"w\": 16, \"h\": 12, " + good_entry + R"(, "fn": [["1/000000.jpg"]], "cam_id": [[1]]})");
+  WriteText(dir / "train_meta.json",
+            "{\"w\": 16, \"h\": 12, " + good_entry + R"(, "fn": [["1/000000.jpg"]], "cam_id": [[1]]})");
   EXPECT_EQ(OpenDataset(dir.path().string()).status().code(), StatusCode::kNotFound);
 }
 

@@ -55,8 +55,9 @@ void WriteVideos(const fs::path& root, int cameras, int frames) {
     }
     char video[32];
     std::snprintf(video, sizeof(video), "cam%02d.mp4", c);
-    const std::string command = "'" + ffmpeg + "' -nostdin -v error -y -framerate 30 -i '" + (pngs / "%03d.png").string() +
-                                "' -c:v libx264rgb -qp 0 -pix_fmt rgb24 '" + (root / video).string() + "'";
+    const std::string command = "'" + ffmpeg + "' -nostdin -v error -y -framerate 30 -i '" +
+                                (pngs / "%03d.png").string() + "' -c:v libx264rgb -qp 0 -pix_fmt rgb24 '" +
+                                (root / video).string() + "'";
     ASSERT_EQ(std::system(command.c_str()), 0) << command;
   }
   fs::remove_all(root / "png");
@@ -113,7 +114,8 @@ TEST(N3dvVideo, DecodedFramesAreTheEncodedPixels) {
   EXPECT_EQ((*image)->width, 16);
   auto expected = DownscaleImage(VideoFrame(2, 1), 2);
   ASSERT_TRUE(expected.ok());
-  for (size_t k = 0; k < expected->pixels.size(); ++k) ASSERT_NEAR((*image)->pixels[k], expected->pixels[k], 0.5 / 255 + 1e-6);
+  for (size_t k = 0; k < expected->pixels.size(); ++k)
+    ASSERT_NEAR((*image)->pixels[k], expected->pixels[k], 0.5 / 255 + 1e-6);
   int seen = 0;
   auto count = data_detail::DecodeVideoFrames((dir / "cam01.mp4").string(), 4, [&](int64_t index, Image frame) {
     EXPECT_EQ(index, seen++);

@@ -115,7 +115,8 @@ StatusOr<ExrHeaderScan> ScanExrHeader(const uint8_t* data, size_t size, const st
     }
     if (name.empty()) break;
     if (!read_string(&type) || size - pos < 4) {
-      return MakeError(StatusCode::kTruncated, what, ": EXR attribute '", name, "' at byte ", attribute_at, " truncated");
+      return MakeError(StatusCode::kTruncated, what, ": EXR attribute '", name, "' at byte ", attribute_at,
+                       " truncated");
     }
     const int32_t length = load32(pos);
     pos += 4;

@@ -91,7 +91,8 @@ StatusOr<ImageInfo> ImageInfoFromBytes(const uint8_t* data, size_t size, const s
 }
 
 StatusOr<std::vector<uint8_t>> EncodeImage(const Image& image, ImageFormat format, const ImageEncodeOptions& options) {
-  if (image.pixels.size() != size_t(std::max(image.width, 0)) * std::max(image.height, 0) * std::max(image.channels, 0)) {
+  if (image.pixels.size() !=
+      size_t(std::max(image.width, 0)) * std::max(image.height, 0) * std::max(image.channels, 0)) {
     return MakeError(StatusCode::kInvalidArgument, "image of ", image.width, "x", image.height, "x", image.channels,
                      " has ", image.pixels.size(), " values");
   }

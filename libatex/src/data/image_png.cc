@@ -168,7 +168,8 @@ StatusOr<Image> DecodePng(const uint8_t* data, size_t size, const std::string& w
     raw.resize(layout.rowbytes * layout.height);
     rows.resize(layout.height);
   } catch (const std::bad_alloc&) {
-    return MakeError(StatusCode::kLimitExceeded, what, ": out of memory for a ", layout.width, "x", layout.height, " PNG");
+    return MakeError(StatusCode::kLimitExceeded, what, ": out of memory for a ", layout.width, "x", layout.height,
+                     " PNG");
   }
   for (uint32_t y = 0; y < layout.height; ++y) rows[y] = raw.data() + size_t{y} * layout.rowbytes;
   if (!ReadPngRows(reader.png, reader.info, rows.data())) {

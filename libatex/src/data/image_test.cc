@@ -126,7 +126,8 @@ TEST(Png, EncodeRoundTripAndAtomicWrite) {
   EXPECT_FLOAT_EQ(back->pixels[3], 1.0f);
   EXPECT_FLOAT_EQ(back->pixels[4], 0.0f);
   EXPECT_FLOAT_EQ(back->pixels[5], 0.0f);
-  for (size_t i = 6; i < image.pixels.size(); ++i) EXPECT_NEAR(back->pixels[i], image.pixels[i], 0.5f / 255 + 1e-6f) << i;
+  for (size_t i = 6; i < image.pixels.size(); ++i)
+    EXPECT_NEAR(back->pixels[i], image.pixels[i], 0.5f / 255 + 1e-6f) << i;
   auto info = ReadImageInfo(path);
   ASSERT_TRUE(info.ok());
   EXPECT_EQ(info->width, 5);
@@ -138,7 +139,8 @@ TEST(Png, EncodeRoundTripAndAtomicWrite) {
   auto bytes16 = EncodeImage(image, ImageFormat::kPng, options);
   ASSERT_TRUE(bytes16.ok());
   Image back16 = Decode(*bytes16);
-  for (size_t i = 6; i < image.pixels.size(); ++i) EXPECT_NEAR(back16.pixels[i], image.pixels[i], 0.5f / 65535 + 1e-6f) << i;
+  for (size_t i = 6; i < image.pixels.size(); ++i)
+    EXPECT_NEAR(back16.pixels[i], image.pixels[i], 0.5f / 65535 + 1e-6f) << i;
   // Only the final file exists in the folder (the temporary was renamed).
   int files = 0;
   for (const auto& e : std::filesystem::directory_iterator(dir.path())) files += e.is_regular_file() ? 1 : 0;

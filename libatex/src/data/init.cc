@@ -227,11 +227,12 @@ Status ValidateInitOptions(const InitOptions& o) {
       !(o.cube_half_extent > 0) || !(o.initial_opacity > 0 && o.initial_opacity < 1) || o.knn_neighbors < 1 ||
       o.knn_neighbors > 16 || o.mvs_points < 0 || !(o.mvs_near > 0) || !(o.mvs_far > o.mvs_near) ||
       o.file_points < 0) {
-    return MakeError(StatusCode::kInvalidArgument,
-                     "init: options out of range (min_views >= 1, hull_resolution 4..1024, hull_keep_fraction (0, 1], "
-                     "point counts >= 0, volume_attempts_per_point >= 1, volume_far > 0.1, "
-                     "volume_max_colour_spread >= 0, cube_half_extent > 0, initial_opacity (0, 1), knn_neighbors 1..16, "
-                     "mvs_points >= 0, 0 < mvs_near < mvs_far, file_points >= 0)");
+    return MakeError(
+        StatusCode::kInvalidArgument,
+        "init: options out of range (min_views >= 1, hull_resolution 4..1024, hull_keep_fraction (0, 1], "
+        "point counts >= 0, volume_attempts_per_point >= 1, volume_far > 0.1, "
+        "volume_max_colour_spread >= 0, cube_half_extent > 0, initial_opacity (0, 1), knn_neighbors 1..16, "
+        "mvs_points >= 0, 0 < mvs_near < mvs_far, file_points >= 0)");
   }
   return Status::Ok();
 }
@@ -312,7 +313,8 @@ StatusOr<Gaussians> InitializeGaussians(const Dataset& dataset, const InitOption
       cams.push_back(std::move(c));
     }
     rep.cameras = static_cast<int>(cams.size());
-    const int masked = static_cast<int>(std::count_if(cams.begin(), cams.end(), [](const auto& c) { return c.mask != nullptr; }));
+    const int masked =
+        static_cast<int>(std::count_if(cams.begin(), cams.end(), [](const auto& c) { return c.mask != nullptr; }));
     if (use_hull && masked < options.min_views) {
       return MakeError(StatusCode::kNotFound, dataset.name(), ": init: the visual hull needs masks in at least ",
                        options.min_views, " cameras of the first timestep, found ", masked);

@@ -28,7 +28,8 @@ StatusOr<PointCloud> FileInitCloud(const InitOptions& options) {
   for (size_t i = 0; i < wanted; ++i) {
     const size_t k = static_cast<size_t>((unsigned __int128)i * n / wanted);
     subset.positions.insert(subset.positions.end(), &cloud.positions[3 * k], &cloud.positions[3 * k + 3]);
-    if (cloud.has_colours()) subset.colours.insert(subset.colours.end(), &cloud.colours[3 * k], &cloud.colours[3 * k + 3]);
+    if (cloud.has_colours())
+      subset.colours.insert(subset.colours.end(), &cloud.colours[3 * k], &cloud.colours[3 * k + 3]);
   }
   return subset;
 }

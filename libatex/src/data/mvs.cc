@@ -19,18 +19,19 @@ constexpr float kInvalidScore = -1.0f;
 
 Status ValidateMvsOptions(const MvsOptions& o) {
   const bool ok = o.max_image_side >= 16 && o.near_depth > 0 && o.far_depth > o.near_depth &&
-                  std::isfinite(o.far_depth) && (o.depth_planes == 0 || (o.depth_planes >= 8 && o.depth_planes <= 4096)) &&
-                  o.plane_step_px > 0 && o.max_depth_planes >= 16 && o.max_depth_planes <= 4096 && o.neighbors >= 1 &&
-                  o.neighbors <= 16 && o.best_neighbors >= 1 && o.best_neighbors <= o.neighbors &&
-                  o.min_angle_deg >= 0 && o.preferred_angle_deg > o.min_angle_deg &&
-                  o.max_angle_deg > o.preferred_angle_deg && o.max_angle_deg < 180 && o.window_radius >= 1 &&
-                  o.window_radius <= 5 && o.min_zncc >= -1 && o.min_zncc <= 1 && o.min_texture >= 0 &&
-                  o.max_cost_ratio > 0 && o.max_cost_ratio <= 1 && o.min_consistent_views >= 1 &&
-                  o.max_reprojection_px > 0 && o.max_relative_depth > 0;
+                  std::isfinite(o.far_depth) &&
+                  (o.depth_planes == 0 || (o.depth_planes >= 8 && o.depth_planes <= 4096)) && o.plane_step_px > 0 &&
+                  o.max_depth_planes >= 16 && o.max_depth_planes <= 4096 && o.neighbors >= 1 && o.neighbors <= 16 &&
+                  o.best_neighbors >= 1 && o.best_neighbors <= o.neighbors && o.min_angle_deg >= 0 &&
+                  o.preferred_angle_deg > o.min_angle_deg && o.max_angle_deg > o.preferred_angle_deg &&
+                  o.max_angle_deg < 180 && o.window_radius >= 1 && o.window_radius <= 5 && o.min_zncc >= -1 &&
+                  o.min_zncc <= 1 && o.min_texture >= 0 && o.max_cost_ratio > 0 && o.max_cost_ratio <= 1 &&
+                  o.min_consistent_views >= 1 && o.max_reprojection_px > 0 && o.max_relative_depth > 0;
   if (ok) return Status::Ok();
   return MakeError(StatusCode::kInvalidArgument,
                    "mvs: options out of range (max_image_side >= 16, 0 < near_depth < far_depth, depth_planes "
-                   "0 or 8..4096, plane_step_px > 0, max_depth_planes 16..4096, neighbors 1..16, best_neighbors 1..neighbors, 0 <= min_angle < preferred_angle < "
+                   "0 or 8..4096, plane_step_px > 0, max_depth_planes 16..4096, neighbors 1..16, best_neighbors "
+                   "1..neighbors, 0 <= min_angle < preferred_angle < "
                    "max_angle < 180, window_radius 1..5, min_zncc in [-1, 1], min_texture >= 0, max_cost_ratio "
                    "(0, 1], min_consistent_views >= 1, max_reprojection_px > 0, max_relative_depth > 0)");
 }

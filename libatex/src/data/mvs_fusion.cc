@@ -82,7 +82,8 @@ size_t OccupiedVoxels(const PointCloud& cloud, const double lo[3], double size, 
   const size_t n = cloud.size();
   keys->resize(n);
 #pragma omp parallel for schedule(static)
-  for (long long i = 0; i < static_cast<long long>(n); ++i) (*keys)[i] = VoxelKey(&cloud.positions[3 * i], lo, 1.0 / size);
+  for (long long i = 0; i < static_cast<long long>(n); ++i)
+    (*keys)[i] = VoxelKey(&cloud.positions[3 * i], lo, 1.0 / size);
   std::sort(keys->begin(), keys->end());
   return static_cast<size_t>(std::unique(keys->begin(), keys->end()) - keys->begin());
 }

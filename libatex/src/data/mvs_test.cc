@@ -219,7 +219,8 @@ TEST(MultiViewStereo, RecoversTheSurfacesOfASyntheticScene) {
     for (int a = 0; a < 3; ++a) colour_errors.push_back(std::abs(truth[a] - cloud->colours[3 * i + a]));
     if (std::abs(x[2]) < 0.05) ++floor;
     else if (std::abs(x[0] + kWall) < 0.1 || std::abs(x[1] + kWall) < 0.1) ++walls;
-    else if (std::abs(std::hypot(x[0] - kSphere[0], x[1] - kSphere[1], x[2] - kSphere[2]) - kSphereRadius) < 0.05) ++sphere;
+    else if (std::abs(std::hypot(x[0] - kSphere[0], x[1] - kSphere[1], x[2] - kSphere[2]) - kSphereRadius) < 0.05)
+      ++sphere;
   }
   // Depth accuracy: a plane step at 3 units is ~2 % of the depth; after the parabola
   // and fusion the points sit within a small fraction of it.
@@ -273,8 +274,9 @@ TEST(MultiViewStereo, DepthMapsMatchTheTrueDepths) {
     }
     ASSERT_FALSE(relative.empty());
     size_t within = std::count_if(relative.begin(), relative.end(), [](double r) { return r < 0.01; });
-    std::printf("camera %d: planes %d depth %.3f, median relative error %.4f, within 1%% %.3f\n", c, report.depth_planes[c], report.depth_fraction[c],
-                Quantile(relative, 0.5), double(within) / relative.size());
+    std::printf("camera %d: planes %d depth %.3f, median relative error %.4f, within 1%% %.3f\n", c,
+                report.depth_planes[c], report.depth_fraction[c], Quantile(relative, 0.5),
+                double(within) / relative.size());
     // Fronto-parallel windows on slanted and curved surfaces: most depths within 1-2 %.
     EXPECT_LT(Quantile(relative, 0.5), 0.02) << c;
     EXPECT_GT(double(within) / relative.size(), 0.35) << c;

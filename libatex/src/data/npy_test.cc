@@ -56,13 +56,15 @@ TEST(Npy, ParsesTheHeaderVariantsNumpyWrites) {
 
 TEST(Npy, DtypesAndByteOrder) {
   {
-    const std::vector<uint8_t> bytes = MakeNpy("{'descr': '|u1', 'fortran_order': False, 'shape': (3,), }", {0, 7, 255});
+    const std::vector<uint8_t> bytes =
+        MakeNpy("{'descr': '|u1', 'fortran_order': False, 'shape': (3,), }", {0, 7, 255});
     auto a = DecodeNpy(bytes.data(), bytes.size(), "u1");
     ASSERT_TRUE(a.ok());
     EXPECT_EQ(a->ToDouble(), (std::vector<double>{0, 7, 255}));
   }
   {
-    const std::vector<uint8_t> bytes = MakeNpy("{'descr': '<i8', 'fortran_order': False, 'shape': (), }", Raw(std::vector<int64_t>{-420}));
+    const std::vector<uint8_t> bytes =
+        MakeNpy("{'descr': '<i8', 'fortran_order': False, 'shape': (), }", Raw(std::vector<int64_t>{-420}));
     auto a = DecodeNpy(bytes.data(), bytes.size(), "i8");
     ASSERT_TRUE(a.ok());
     EXPECT_TRUE(a->shape.empty());
@@ -112,12 +114,16 @@ TEST(Npy, Refusals) {
             StatusCode::kTruncated);
   EXPECT_EQ(code(MakeNpy("{'descr': '<f8', 'fortran_order': False, 'shape': (4611686018427387904, 4), }", four_floats)),
             StatusCode::kTruncated);
-  EXPECT_EQ(code(MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': (3,), }", four_floats)), StatusCode::kCorrupt);
-  EXPECT_EQ(code(MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': (5,), }", four_floats)), StatusCode::kTruncated);
+  EXPECT_EQ(code(MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': (3,), }", four_floats)),
+            StatusCode::kCorrupt);
+  EXPECT_EQ(code(MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': (5,), }", four_floats)),
+            StatusCode::kTruncated);
   // Malformed headers.
   EXPECT_EQ(code(MakeNpy("{'descr': '<f4', 'shape': (4,), }", four_floats)), StatusCode::kCorrupt);
-  EXPECT_EQ(code(MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': (-4,), }", four_floats)), StatusCode::kCorrupt);
-  EXPECT_EQ(code(MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': (4,), 'x': 1}", four_floats)), StatusCode::kCorrupt);
+  EXPECT_EQ(code(MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': (-4,), }", four_floats)),
+            StatusCode::kCorrupt);
+  EXPECT_EQ(code(MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': (4,), 'x': 1}", four_floats)),
+            StatusCode::kCorrupt);
   EXPECT_EQ(code(MakeNpy("__import__('os').system('true')", four_floats)), StatusCode::kCorrupt);
   EXPECT_EQ(code(MakeNpy("{'descr': '<f4', 'fortran_order': False, 'shape': (99999999999999999999,), }", four_floats)),
             StatusCode::kCorrupt);

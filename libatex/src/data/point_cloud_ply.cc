@@ -187,7 +187,8 @@ class BodyReader {
 uint64_t MinInstanceBytes(const Element& e, Encoding encoding) {
   uint64_t bytes = 0;
   for (const Property& p : e.properties) {
-    const uint64_t value = encoding == Encoding::kAscii ? 2 : uint64_t(p.count_type ? p.count_type->bytes : p.type->bytes);
+    const uint64_t value =
+        encoding == Encoding::kAscii ? 2 : uint64_t(p.count_type ? p.count_type->bytes : p.type->bytes);
     bytes += value;
   }
   return std::max<uint64_t>(bytes, 1);

@@ -193,7 +193,8 @@ StatusOr<TransformsFile> ParseTransformsJson(std::string_view text, const std::s
   }
   TransformsFile file;
   if (doc.contains("ply_file_path")) {
-    if (!doc["ply_file_path"].is_string()) return MakeError(StatusCode::kCorrupt, what, ": ply_file_path is not a string");
+    if (!doc["ply_file_path"].is_string())
+      return MakeError(StatusCode::kCorrupt, what, ": ply_file_path is not a string");
     file.ply_file_path = doc["ply_file_path"].get<std::string>();
   }
   ATEX_RETURN_IF_ERROR(ReadStringList(doc, "train_filenames", what, &file.train_files));

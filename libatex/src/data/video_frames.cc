@@ -120,7 +120,8 @@ StatusOr<int64_t> DecodeVideoFrames(const std::string& path, int64_t max_frames,
   while (!done) {
     const int rc = av_read_frame(d.format, d.packet);
     if (rc == AVERROR_EOF) break;
-    if (rc < 0) return MakeError(StatusCode::kCorrupt, path, ": read error after frame ", decoded, " (", AvError(rc), ")");
+    if (rc < 0)
+      return MakeError(StatusCode::kCorrupt, path, ": read error after frame ", decoded, " (", AvError(rc), ")");
     if (d.packet->stream_index == stream) {
       const int sent = avcodec_send_packet(d.codec, d.packet);
       av_packet_unref(d.packet);

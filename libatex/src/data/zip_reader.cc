@@ -28,7 +28,8 @@ constexpr size_t kMaxComment = 0xFFFF;
 // Finds the end record by scanning backwards over the (at most 64 KiB) comment.
 StatusOr<size_t> FindEndRecord(const uint8_t* data, size_t size, const std::string& what) {
   if (size < kEndSize) {
-    return MakeError(StatusCode::kTruncated, what, ": ", size, " bytes is too small for a zip archive (22-byte end record)");
+    return MakeError(StatusCode::kTruncated, what, ": ", size,
+                     " bytes is too small for a zip archive (22-byte end record)");
   }
   const size_t lowest = size - kEndSize >= kMaxComment ? size - kEndSize - kMaxComment : 0;
   for (size_t pos = size - kEndSize + 1; pos-- > lowest;) {
@@ -310,9 +311,9 @@ StatusOr<std::vector<uint8_t>> ZipArchive::Extract(const ZipEntry& entry) const 
   }
   inflateEnd(&stream);
   if (produced != entry.uncompressed_size) {
-    return MakeError(StatusCode::kCorrupt, where, ": inflates to ", produced > entry.uncompressed_size ? "more than " : "",
-                     std::min<uint64_t>(produced, entry.uncompressed_size), " bytes, the directory says ",
-                     entry.uncompressed_size);
+    return MakeError(
+        StatusCode::kCorrupt, where, ": inflates to ", produced > entry.uncompressed_size ? "more than " : "",
+        std::min<uint64_t>(produced, entry.uncompressed_size), " bytes, the directory says ", entry.uncompressed_size);
   }
   out.resize(produced);
   if (ZipCrc32(out.data(), out.size()) != entry.crc32) {

@@ -113,7 +113,8 @@ TEST(Zip, RejectsNonZipAndTruncation) {
 TEST(Zip, ForgedFieldsAreRefused) {
   const std::vector<uint8_t> good = TwoMemberArchive(true);
   const size_t end = good.size() - 22;
-  const uint32_t cd_offset = good[end + 16] | good[end + 17] << 8 | good[end + 18] << 16 | uint32_t(good[end + 19]) << 24;
+  const uint32_t cd_offset =
+      good[end + 16] | good[end + 17] << 8 | good[end + 18] << 16 | uint32_t(good[end + 19]) << 24;
   auto patch32 = [](std::vector<uint8_t>& b, size_t at, uint32_t v) {
     for (int i = 0; i < 4; ++i) b[at + i] = static_cast<uint8_t>(v >> (8 * i));
   };

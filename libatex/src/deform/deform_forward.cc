@@ -60,9 +60,9 @@ void ForwardBlock(const BasicDeformationField<T>& field, const Layout& l,
     map.Apply(canonical.positions.data() + 3 * i, coord);
     const size_t row = i - begin;
     for (int s = 0; s < l.scales; ++s) {
-      detail::SampleHexPlaneScale(views[s], coord,
-                                  samples + row * per_gaussian + static_cast<size_t>(s) * detail::kHexPlanes * l.channels,
-                                  features + row * l.feat + static_cast<size_t>(s) * l.channels);
+      detail::SampleHexPlaneScale(
+          views[s], coord, samples + row * per_gaussian + static_cast<size_t>(s) * detail::kHexPlanes * l.channels,
+          features + row * l.feat + static_cast<size_t>(s) * l.channels);
     }
   }
 

@@ -51,8 +51,8 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
     while (j < plan.moves.size() && plan.moves[j].bytes_after > budget_bytes) ++j;
     if (j == plan.moves.size()) {
       const uint64_t reached = plan.moves.empty() ? bytes.size() : plan.moves.back().bytes_after;
-      return MakeError(StatusCode::kOutOfRange, "the fit plan reaches ", reached, " bytes at best, above the budget of ",
-                       budget_bytes, " bytes");
+      return MakeError(StatusCode::kOutOfRange, "the fit plan reaches ", reached,
+                       " bytes at best, above the budget of ", budget_bytes, " bytes");
     }
     for (size_t k = 0; k < j; ++k) {
       ATEX_RETURN_IF_ERROR(ApplyMove(plan.moves[k], plan.prune_order, &state.asset, &state.write, &state.kept));

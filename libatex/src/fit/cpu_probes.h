@@ -83,7 +83,9 @@ class CpuProbeRenderer {
     RenderSettings settings;
     const TexturePool* textures = nullptr;
     std::vector<Gaussians> deformed;  // [camera], empty for a static render
-    const Gaussians& shown(const Asset& asset, size_t k) const { return deformed.empty() ? asset.gaussians : deformed[k]; }
+    const Gaussians& shown(const Asset& asset, size_t k) const {
+      return deformed.empty() ? asset.gaussians : deformed[k];
+    }
   };
   StatusOr<Prepared> Prepare(const Asset& asset, const std::vector<Camera>& cameras,
                              const train::RenderRequest& request);

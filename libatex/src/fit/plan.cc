@@ -119,7 +119,9 @@ struct Evaluated {
   State next;     // the state after the move (kept only for the best fresh evaluation)
   Asset decoded;  // what a reader of `next` gets (for accept_more)
 };
-bool Better(const Cached& a, const Cached& b) { return a.ratio < b.ratio || (a.ratio == b.ratio && a.saving > b.saving); }
+bool Better(const Cached& a, const Cached& b) {
+  return a.ratio < b.ratio || (a.ratio == b.ratio && a.saving > b.saving);
+}
 
 // kInvalidArgument for options or probes a plan cannot be built with.
 Status CheckPlanInputs(const ProbeRenderer& renderer, const PlanOptions& options) {

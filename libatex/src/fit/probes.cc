@@ -140,7 +140,8 @@ Status ProbeRenderer::EnsureImportance(Asset* asset) {
   if (asset->stats && asset->stats->importance.size() == n) return Status::Ok();
   std::vector<Camera> cameras;
   for (const Probe& p : probes_) cameras.push_back(p.camera);
-  ATEX_ASSIGN_OR_RETURN(std::vector<float> importance, cpu_->Importance(*asset, cameras, train::RenderRequestFor(*asset)));
+  ATEX_ASSIGN_OR_RETURN(std::vector<float> importance,
+                        cpu_->Importance(*asset, cameras, train::RenderRequestFor(*asset)));
   SetImportance(asset, std::move(importance));
   return Status::Ok();
 }

@@ -29,7 +29,8 @@ class PrefixStates {
   StatusOr<State> Before(const std::vector<Move>& moves, size_t k) {
     if (!checkpoint_ || checkpoint_index_ > k) {
       const size_t index = k > kStride ? k - kStride : 0;
-      ATEX_ASSIGN_OR_RETURN(State at, ApplyRange(InitialState(asset_, write_), plan_, moves, 0, index, moves.size(), 0));
+      ATEX_ASSIGN_OR_RETURN(State at,
+                            ApplyRange(InitialState(asset_, write_), plan_, moves, 0, index, moves.size(), 0));
       checkpoint_ = std::move(at);
       checkpoint_index_ = index;
     }

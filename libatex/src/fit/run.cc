@@ -88,7 +88,8 @@ Status Run::ReadInput(const std::vector<uint8_t>& input_bytes) {
   clock_.Done("read_input");
   // Probes: training views (scaled down) with a dataset, orbit views without.
   if (dataset_ != nullptr) {
-    for (const View& v : Spread(dataset_->train_views(), o_.probes)) probes_.push_back({ScaleCamera(v.camera, o_.probe_size)});
+    for (const View& v : Spread(dataset_->train_views(), o_.probes))
+      probes_.push_back({ScaleCamera(v.camera, o_.probe_size)});
     eval_views_ = Spread(dataset_->test_views(), o_.eval_views);
   } else {
     probes_ = OrbitProbes(input_, o_.probes, o_.probe_size, std::max(1, o_.probe_size * 3 / 4));
@@ -150,7 +151,8 @@ StatusOr<Fitted> Run::FitOnce(const Asset& start, const WriteOptions& start_writ
   }
   ATEX_ASSIGN_OR_RETURN(Plan plan, BuildPlan(start, &*renderer_, p));
   shared_plan_ = plan;
-  const uint64_t goal = quality_mode ? (plan.moves.empty() ? plan.initial_bytes : plan.moves.back().bytes_after) : target;
+  const uint64_t goal =
+      quality_mode ? (plan.moves.empty() ? plan.initial_bytes : plan.moves.back().bytes_after) : target;
   auto fitted = ApplyPlan(start, plan, start_write, goal);
   nlohmann::json timing = TimingToJson(plan.timing);
   if (fitted.ok()) {

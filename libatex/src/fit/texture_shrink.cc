@@ -100,7 +100,8 @@ void ShrinkTexture(const float* src, int height, int width, float* dst, int new_
 namespace {
 
 // ShrinkResidual with tanh(src) given (a texture's two candidate halvings share it).
-double ShrinkResidualOf(const float* src, const double* tanh_src, int height, int width, int new_height, int new_width) {
+double ShrinkResidualOf(const float* src, const double* tanh_src, int height, int width, int new_height,
+                        int new_width) {
   std::array<float, 4 * 4 * kTexelChannels> shrunk, back;
   ShrinkTexture(src, height, width, shrunk.data(), new_height, new_width);
   detail::UpsampleTexture(shrunk.data(), new_height, new_width, back.data(), height, width, 4);

@@ -91,8 +91,10 @@ TEST(PhotometricLoss, FloatAgreesWithDouble) {
   std::vector<double> rendered_d(rendered_f.begin(), rendered_f.end());
   std::vector<float> grad_f(rendered_f.size());
   std::vector<double> grad_d(rendered_f.size());
-  const float loss_f = PhotometricLoss<float>(rendered_f.data(), p.target.data(), p.width, p.height, 0.2, grad_f.data());
-  const double loss_d = PhotometricLoss<double>(rendered_d.data(), p.target.data(), p.width, p.height, 0.2, grad_d.data());
+  const float loss_f =
+      PhotometricLoss<float>(rendered_f.data(), p.target.data(), p.width, p.height, 0.2, grad_f.data());
+  const double loss_d =
+      PhotometricLoss<double>(rendered_d.data(), p.target.data(), p.width, p.height, 0.2, grad_d.data());
   EXPECT_NEAR(loss_f, loss_d, 1e-5);
   double max_grad = 0, max_diff = 0;
   for (size_t i = 0; i < grad_d.size(); ++i) {

@@ -29,7 +29,9 @@ Status CheckPair(const Image& a, const Image& b) {
   return Status::Ok();
 }
 
-std::vector<double> ToDouble(const Image& image) { return std::vector<double>(image.pixels.begin(), image.pixels.end()); }
+std::vector<double> ToDouble(const Image& image) {
+  return std::vector<double>(image.pixels.begin(), image.pixels.end());
+}
 
 }  // namespace
 

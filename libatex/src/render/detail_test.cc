@@ -95,7 +95,8 @@ TEST(DetailQuaternion, MatchesTheRotationAboutAnAxisAndIsScaleInvariant) {
   const double angle = 0.7;
   // 2.5 × the unit quaternion of a rotation by `angle` about z.
   const auto r = QuaternionToRotation(Vec4<double>{{2.5 * std::cos(angle / 2), 0, 0, 2.5 * std::sin(angle / 2)}});
-  const double expected[3][3] = {{std::cos(angle), -std::sin(angle), 0}, {std::sin(angle), std::cos(angle), 0}, {0, 0, 1}};
+  const double expected[3][3] = {
+      {std::cos(angle), -std::sin(angle), 0}, {std::sin(angle), std::cos(angle), 0}, {0, 0, 1}};
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) EXPECT_NEAR(r(i, j), expected[i][j], 1e-15);
   // About x by 90°: local y maps to world z (column 1 of R).
@@ -173,7 +174,8 @@ TEST(DetailProjection, ProjectGaussianVjp) {
       EXPECT_TRUE(p.visible || std::abs(x_over_z) > 1);
       // Off-screen Gaussians have no rectangle; use the raw values through the detail steps.
       const auto t = WorldToCamera(cam, V3(in, 0));
-      const auto cov2d = ProjectCovariance(cam, ProjectionJacobian(cam, t), CovarianceFromRotationScale(M3(in, 3), V3(in, 12)));
+      const auto cov2d =
+          ProjectCovariance(cam, ProjectionJacobian(cam, t), CovarianceFromRotationScale(M3(in, 3), V3(in, 12)));
       Vec3<double> conic{{0, 0, 0}};
       InvertCovariance2d(cov2d, &conic);
       const auto m = ProjectPoint(cam, t);
@@ -182,7 +184,8 @@ TEST(DetailProjection, ProjectGaussianVjp) {
     const Vjp vjp = [&](const Vector& in, const Vector& g) {
       Vec3<double> g_mean{{0, 0, 0}}, g_s{{0, 0, 0}};
       Mat3<double> g_r = ZeroMat3<double>();
-      ProjectGaussianVjp(cam, V3(in, 0), M3(in, 3), V3(in, 12), Vec2<double>{{g[0], g[1]}}, V3(g, 2), &g_mean, &g_r, &g_s);
+      ProjectGaussianVjp(cam, V3(in, 0), M3(in, 3), V3(in, 12), Vec2<double>{{g[0], g[1]}}, V3(g, 2), &g_mean, &g_r,
+                         &g_s);
       Vector out;
       Put(&out, g_mean);
       Put(&out, g_r);
@@ -255,8 +258,8 @@ TEST(DetailComposite, OneTexelSkipsCoordinatesWithTheSameSample) {
   // A 1×1 texture through the coordinate-free path (with and without the precomputed
   // ConstantTexel) gives exactly what the general bilinear path gives.
   const auto r = QuaternionToRotation(Vec4<double>{{0.9, 0.1, -0.2, 0.3}});
-  const TextureFrame<double> frame =
-      MakeTextureFrame(r, Vec3<double>{{0.1, 0.1, 3.0}}, Vec3<double>{{-0.5, -0.7, -1.0}}, Vec3<double>{{0, 0, 0}}, 0, 1);
+  const TextureFrame<double> frame = MakeTextureFrame(r, Vec3<double>{{0.1, 0.1, 3.0}},
+                                                      Vec3<double>{{-0.5, -0.7, -1.0}}, Vec3<double>{{0, 0, 0}}, 0, 1);
   const double texel[4] = {0.7, -1.3, 0.2, 2.1};
   SplatParams<double> s;
   s.mean2d = {{10.2, 7.9}};
@@ -380,8 +383,8 @@ TEST(DetailTexture, RayPlaneIntersectionClosedForm) {
   // Plane z = 4 facing the camera at the origin, u along x with scale 2, v along y with scale 0.5.
   Mat3<double> identity = ZeroMat3<double>();
   for (int k = 0; k < 3; ++k) identity(k, k) = 1;
-  const auto frame = MakeTextureFrame(identity, Vec3<double>{{0.5, 0, 4}}, Vec3<double>{{std::log(2.0), std::log(0.5), 0}},
-                                      Vec3<double>{{0, 0, 0}}, 0, 1);
+  const auto frame = MakeTextureFrame(identity, Vec3<double>{{0.5, 0, 4}},
+                                      Vec3<double>{{std::log(2.0), std::log(0.5), 0}}, Vec3<double>{{0, 0, 0}}, 0, 1);
   const auto tc = ComputeTexCoord(frame, Vec3<double>{{0.25, 0.05, 1.0}});  // hits (1, 0.2, 4)
   EXPECT_NEAR(tc.u, (1.0 - 0.5) / 2, 1e-15);
   EXPECT_NEAR(tc.v, 0.2 / 0.5, 1e-15);
@@ -438,7 +441,8 @@ TEST(DetailComposite, EvaluateSplatVjp) {
            0.3, 0.5, 0.7};    // colour
   Vector frame;
   const auto r = QuaternionToRotation(Vec4<double>{{0.9, 0.1, -0.2, 0.3}});
-  Put(&frame, MakeTextureFrame(r, Vec3<double>{{0.1, 0.1, 3.0}}, Vec3<double>{{-0.5, -0.7, -1.0}}, Vec3<double>{{0, 0, 0}}, 0, 1));
+  Put(&frame, MakeTextureFrame(r, Vec3<double>{{0.1, 0.1, 3.0}}, Vec3<double>{{-0.5, -0.7, -1.0}},
+                               Vec3<double>{{0, 0, 0}}, 0, 1));
   x.insert(x.end(), frame.begin(), frame.end());
   const Vector texels = Random(nt, -1, 1, rng);
   x.insert(x.end(), texels.begin(), texels.end());

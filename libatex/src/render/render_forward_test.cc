@@ -83,7 +83,8 @@ TEST(RenderForward, IsotropicGaussianFacingTheCameraHasTheClosedFormFootprint) {
       if (a < 1.0 / 255) a = 0;
       const size_t p = size_t(y) * camera.width + x;
       for (int c = 0; c < 3; ++c) {
-        max_error = std::max(max_error, std::abs(out->color[3 * p + c] - (rgb[c] * a + (1 - a) * settings.background[c])));
+        max_error =
+            std::max(max_error, std::abs(out->color[3 * p + c] - (rgb[c] * a + (1 - a) * settings.background[c])));
       }
       max_error = std::max(max_error, std::abs(out->alpha[p] - a));
       alpha_sum += a;
@@ -113,19 +114,23 @@ TEST(RenderForward, ProjectionMatchesAnIndependentEigenEwa) {
       EXPECT_EQ(out->radius[i], 0);
       continue;
     }
-    const Eigen::Quaterniond q(g.rotations[4 * i], g.rotations[4 * i + 1], g.rotations[4 * i + 2], g.rotations[4 * i + 3]);
+    const Eigen::Quaterniond q(g.rotations[4 * i], g.rotations[4 * i + 1], g.rotations[4 * i + 2],
+                               g.rotations[4 * i + 3]);
     const Eigen::Matrix3d R = q.normalized().toRotationMatrix();
     const Eigen::Vector3d s(std::exp(g.log_scales[3 * i]), std::exp(g.log_scales[3 * i + 1]),
                             std::exp(g.log_scales[3 * i + 2]));
     const Eigen::Matrix3d cov = R * s.cwiseAbs2().asDiagonal() * R.transpose();
     // gsplat's clamp of x/z and y/z.
     const double tan_x = 0.5 * camera.width / camera.fx, tan_y = 0.5 * camera.height / camera.fy;
-    const double lim_xp = (camera.width - camera.cx) / camera.fx + 0.3 * tan_x, lim_xn = camera.cx / camera.fx + 0.3 * tan_x;
-    const double lim_yp = (camera.height - camera.cy) / camera.fy + 0.3 * tan_y, lim_yn = camera.cy / camera.fy + 0.3 * tan_y;
+    const double lim_xp = (camera.width - camera.cx) / camera.fx + 0.3 * tan_x,
+                 lim_xn = camera.cx / camera.fx + 0.3 * tan_x;
+    const double lim_yp = (camera.height - camera.cy) / camera.fy + 0.3 * tan_y,
+                 lim_yn = camera.cy / camera.fy + 0.3 * tan_y;
     const double tx = t.z() * std::clamp(t.x() / t.z(), -lim_xn, lim_xp);
     const double ty = t.z() * std::clamp(t.y() / t.z(), -lim_yn, lim_yp);
     Eigen::Matrix<double, 2, 3> J;
-    J << camera.fx / t.z(), 0, -camera.fx * tx / (t.z() * t.z()), 0, camera.fy / t.z(), -camera.fy * ty / (t.z() * t.z());
+    J << camera.fx / t.z(), 0, -camera.fx * tx / (t.z() * t.z()), 0, camera.fy / t.z(),
+        -camera.fy * ty / (t.z() * t.z());
     const Eigen::Matrix2d cov2 = J * W * cov * W.transpose() * J.transpose() + 0.3 * Eigen::Matrix2d::Identity();
     const Eigen::Matrix2d conic = cov2.inverse();
     const double mx = camera.fx * t.x() / t.z() + camera.cx, my = camera.fy * t.y() / t.z() + camera.cy;
@@ -323,7 +328,8 @@ TEST(RenderForward, ResultsAreBitIdenticalForAnyThreadCount) {
   options.count = 3000;  // above the per-Gaussian parallel threshold
   const auto g = render_testing::RandomGaussians<float>(camera, options, rng);
   const auto pool = render_testing::RandomTextures(g, render_testing::TextureKind::kAdaptiveMixed, 1.0, rng);
-  std::vector<float> grad_color(size_t(camera.width) * camera.height * 3), grad_alpha(size_t(camera.width) * camera.height);
+  std::vector<float> grad_color(size_t(camera.width) * camera.height * 3),
+      grad_alpha(size_t(camera.width) * camera.height);
   std::uniform_real_distribution<float> weight(-1, 1);
   for (float& v : grad_color) v = weight(rng);
   for (float& v : grad_alpha) v = weight(rng);
@@ -335,7 +341,8 @@ TEST(RenderForward, ResultsAreBitIdenticalForAnyThreadCount) {
     auto out = RenderForward(camera, g, &pool, RenderSettings{});
     ASSERT_TRUE(out.ok());
     RenderGradients grad;
-    ASSERT_TRUE(RenderBackward(camera, g, &pool, RenderSettings{}, *out, grad_color.data(), grad_alpha.data(), &grad).ok());
+    ASSERT_TRUE(
+        RenderBackward(camera, g, &pool, RenderSettings{}, *out, grad_color.data(), grad_alpha.data(), &grad).ok());
     outputs.push_back(std::move(*out));
     grads.push_back(std::move(grad));
   }
@@ -366,7 +373,8 @@ TEST(RenderForward, FloatAgreesWithDouble) {
   auto of = RenderForward(camera, gf, &pf, RenderSettings{});
   ASSERT_TRUE(od.ok() && of.ok());
   double max_diff = 0;
-  for (size_t k = 0; k < od->color.size(); ++k) max_diff = std::max(max_diff, std::abs(od->color[k] - double(of->color[k])));
+  for (size_t k = 0; k < od->color.size(); ++k)
+    max_diff = std::max(max_diff, std::abs(od->color[k] - double(of->color[k])));
   EXPECT_LT(max_diff, 1e-4);
 }
 
@@ -495,8 +503,11 @@ TEST_F(RenderValidation, BackwardRejectsMismatchedForwardAndBadGradients) {
 TEST(RenderForward, HugeButFiniteValuesDoNotBreakTheRenderer) {
   const Camera camera = AxisCamera(32, 32, 20, 16, 16);
   BasicGaussians<float> g = OneGaussian<float>({0, 0, 3}, {1, 1, 1}, {1, 0, 0, 0}, 0.9, {1, 1, 1});
-  for (const auto& [pos, log_scale] : std::vector<std::pair<std::array<float, 3>, float>>{
-           {{1e30f, 0, 3}, 0.0f}, {{0, 0, 3}, 80.0f}, {{0, 0, 3}, -80.0f}, {{0, 0, 1e-6f + 0.01f}, 5.0f}, {{0, 0, 1e35f}, 0.0f}}) {
+  for (const auto& [pos, log_scale] : std::vector<std::pair<std::array<float, 3>, float>>{{{1e30f, 0, 3}, 0.0f},
+                                                                                          {{0, 0, 3}, 80.0f},
+                                                                                          {{0, 0, 3}, -80.0f},
+                                                                                          {{0, 0, 1e-6f + 0.01f}, 5.0f},
+                                                                                          {{0, 0, 1e35f}, 0.0f}}) {
     for (int k = 0; k < 3; ++k) {
       g.positions[k] = pos[k];
       g.log_scales[k] = log_scale;

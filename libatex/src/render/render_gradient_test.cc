@@ -271,7 +271,9 @@ const SceneConfig kScenes[] = {
 };
 
 INSTANTIATE_TEST_SUITE_P(Scenes, RenderGradientTest, ::testing::ValuesIn(kScenes),
-                         [](const ::testing::TestParamInfo<SceneConfig>& info) { return std::string(info.param.name); });
+                         [](const ::testing::TestParamInfo<SceneConfig>& info) {
+                           return std::string(info.param.name);
+                         });
 
 }  // namespace
 }  // namespace atex

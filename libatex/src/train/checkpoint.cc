@@ -80,7 +80,8 @@ Status WriteCheckpoint(const std::string& dir, const ModelState& state, const Me
     if (ec) return MakeError(StatusCode::kIoError, "checkpoint: cannot move ", target.string(), ": ", ec.message());
   }
   fs::rename(staging, target, ec);
-  if (ec) return MakeError(StatusCode::kIoError, "checkpoint: cannot rename into ", target.string(), ": ", ec.message());
+  if (ec)
+    return MakeError(StatusCode::kIoError, "checkpoint: cannot rename into ", target.string(), ": ", ec.message());
   fs::remove_all(old, ec);
   return Status::Ok();
 }

@@ -40,7 +40,8 @@ std::pair<double, double> Solve(const Moments& m) {
 
 StatusOr<ColourAffine> FitColourAffine(const std::vector<ImagePair>& pairs, double keep) {
   if (pairs.empty()) return MakeError(StatusCode::kInvalidArgument, "colour fit: no images");
-  if (!(keep > 0 && keep <= 1)) return MakeError(StatusCode::kInvalidArgument, "colour fit: keep ", keep, " outside (0, 1]");
+  if (!(keep > 0 && keep <= 1))
+    return MakeError(StatusCode::kInvalidArgument, "colour fit: keep ", keep, " outside (0, 1]");
   for (size_t i = 0; i < pairs.size(); ++i) {
     const Image* r = pairs[i].rendered;
     const Image* t = pairs[i].target;

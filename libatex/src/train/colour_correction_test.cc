@@ -110,7 +110,8 @@ TEST(ColourCorrection, NormalisingMakesTheAverageCameraTheIdentity) {
 
 TEST(ColourCorrection, CameraColoursSurviveJsonAndRefuseGarbage) {
   auto parsed = CameraColours::FromJson(nlohmann::json::parse(
-      R"({"3": {"gain": [1.1, 0.9, 1.0], "offset": [0.01, -0.02, 0.0]}, "12": {"gain": [1, 1, 1], "offset": [0, 0, 0]}})"));
+      R"({"3": {"gain": [1.1, 0.9, 1.0], "offset": [0.01, -0.02, 0.0]},)"
+      R"( "12": {"gain": [1, 1, 1], "offset": [0, 0, 0]}})"));
   ASSERT_TRUE(parsed.ok()) << parsed.status().message();
   EXPECT_EQ(parsed->size(), 2u);
   EXPECT_FLOAT_EQ(parsed->For(3).gain[0], 1.1f);

@@ -74,7 +74,8 @@ class Rendezvous {
       status_ = Reduce();
       departing_ = true;
       cv_.notify_all();
-    } else if (!cv_.wait_for(lock, timeout_, [&] { return generation_ != generation || departing_ || !broken_.ok(); })) {
+    } else if (!cv_.wait_for(lock, timeout_,
+                             [&] { return generation_ != generation || departing_ || !broken_.ok(); })) {
       return Break(rank, mine, "the other ranks");
     }
     if (!broken_.ok()) return broken_;

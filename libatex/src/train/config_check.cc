@@ -61,7 +61,8 @@ void ValidateDeformation(const DeformationConfig& d, Ranges& r) {
   r.In(p + "grid.channels", d.grid.channels, 1, 1024);
   for (int k = 0; k < 4; ++k) r.In(StrCat(p, "grid.base_resolution[", k, "]"), d.grid.base_resolution[k], 1, 8192);
   if (d.grid.multires.empty()) r.Fail(MakeError(StatusCode::kOutOfRange, p, "grid.multires is empty"));
-  for (size_t k = 0; k < d.grid.multires.size(); ++k) r.In(StrCat(p, "grid.multires[", k, "]"), d.grid.multires[k], 1, 64);
+  for (size_t k = 0; k < d.grid.multires.size(); ++k)
+    r.In(StrCat(p, "grid.multires[", k, "]"), d.grid.multires[k], 1, 64);
   r.In(p + "grid.multires (count)", d.grid.multires.size(), size_t{0}, size_t{8});
   r.In(p + "mlp_width", d.mlp_width, 1, 4096);
   r.In(p + "trunk_layers", d.trunk_layers, 1, 64);
@@ -78,8 +79,12 @@ void ValidateStage1(const Stage1Config& s, Ranges& r) {
   r.Decay(p + "lr.position", s.lr.position);
   r.Decay(p + "lr.mlp", s.lr.mlp);
   r.Decay(p + "lr.grid", s.lr.grid);
-  for (const auto& [key, value] : {std::pair{"sh_dc", s.lr.sh_dc}, {"sh_rest", s.lr.sh_rest}, {"opacity", s.lr.opacity},
-                                   {"log_scale", s.lr.log_scale}, {"rotation", s.lr.rotation}, {"texels", s.lr.texels}}) {
+  for (const auto& [key, value] : {std::pair{"sh_dc", s.lr.sh_dc},
+                                   {"sh_rest", s.lr.sh_rest},
+                                   {"opacity", s.lr.opacity},
+                                   {"log_scale", s.lr.log_scale},
+                                   {"rotation", s.lr.rotation},
+                                   {"texels", s.lr.texels}}) {
     r.In(p + "lr." + key, value, 0.0, kMaxLr);
   }
   const DensifyConfig& d = s.densify;
@@ -124,8 +129,8 @@ void ValidateStage1(const Stage1Config& s, Ranges& r) {
   r.In(p + "init_mvs.max_reprojection_px", m.max_reprojection_px, 1e-6, 1e3);
   r.In(p + "init_mvs.max_relative_depth", m.max_relative_depth, 1e-9, 1.0);
   if (r.status().ok() && s.init_method == "file" && s.init_point_cloud.empty()) {
-    r.Fail(MakeError(StatusCode::kInvalidArgument, p, "init_method=file needs ", p, "init_point_cloud (a PLY or COLMAP ",
-                     "points3D.txt/.bin)"));
+    r.Fail(MakeError(StatusCode::kInvalidArgument, p, "init_method=file needs ", p,
+                     "init_point_cloud (a PLY or COLMAP ", "points3D.txt/.bin)"));
   }
 }
 
@@ -162,9 +167,11 @@ bool SameColour(const std::array<float, 3>& a, const std::array<float, 3>& b) {
 std::string Colour(const std::array<float, 3>& c) { return StrCat("[", c[0], ",", c[1], ",", c[2], "]"); }
 
 // Key paths and values of a JSON object's leaves ("stage1.lr.grid.initial" -> 0.0016).
-void Flatten(const nlohmann::json& j, const std::string& path, std::vector<std::pair<std::string, nlohmann::json>>* out) {
+void Flatten(const nlohmann::json& j, const std::string& path,
+             std::vector<std::pair<std::string, nlohmann::json>>* out) {
   if (j.is_object()) {
-    for (auto it = j.begin(); it != j.end(); ++it) Flatten(it.value(), path.empty() ? it.key() : path + "." + it.key(), out);
+    for (auto it = j.begin(); it != j.end(); ++it)
+      Flatten(it.value(), path.empty() ? it.key() : path + "." + it.key(), out);
   } else {
     out->emplace_back(path, j);
   }

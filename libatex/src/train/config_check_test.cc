@@ -42,7 +42,8 @@ Status Override(TrainConfig* config, const std::string& assignment) {
 
 TEST(ConfigCheck, DefaultsAreValid) {
   for (const char* kind : {"panoptic", "dnerf", "n3dv", "generic"}) {
-    EXPECT_TRUE(ValidateConfig(DefaultConfig(kind)).ok()) << kind << ": " << ValidateConfig(DefaultConfig(kind)).ToString();
+    EXPECT_TRUE(ValidateConfig(DefaultConfig(kind)).ok())
+        << kind << ": " << ValidateConfig(DefaultConfig(kind)).ToString();
   }
 }
 

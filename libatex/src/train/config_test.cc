@@ -44,7 +44,8 @@ TEST(Config, PanopticRigsStartFromStereoWithCameraColours) {
 TEST(Config, EveryDatasetKindNamesItsDefaults) {
   EXPECT_STREQ(DefaultConfigKind(DatasetKind::kPanoptic), "panoptic");
   EXPECT_STREQ(DefaultConfigKind(DatasetKind::kN3dv), "n3dv");
-  for (DatasetKind kind : {DatasetKind::kDNerf, DatasetKind::kDNerfNpz, DatasetKind::kNerfstudio, DatasetKind::kColmap}) {
+  for (DatasetKind kind :
+       {DatasetKind::kDNerf, DatasetKind::kDNerfNpz, DatasetKind::kNerfstudio, DatasetKind::kColmap}) {
     EXPECT_STREQ(DefaultConfigKind(kind), "dnerf") << DatasetKindName(kind);
   }
   EXPECT_STREQ(DefaultConfigKind(DatasetKind::kInMemory), "generic");

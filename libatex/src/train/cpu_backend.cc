@@ -168,8 +168,8 @@ class CpuBackend final : public Backend {
       result.view_psnr.push_back(mse > 0 ? -10.0 * std::log10(mse) : 99.0);
 
       RenderGradients rgrads;
-      ATEX_RETURN_IF_ERROR(RenderBackward<float>(camera, *rendered_gaussians, textures, settings, out, grad_image.data(),
-                                          nullptr, &rgrads));
+      ATEX_RETURN_IF_ERROR(RenderBackward<float>(camera, *rendered_gaussians, textures, settings, out,
+                                                 grad_image.data(), nullptr, &rgrads));
       if (request.apply_deformation) {
         Gaussians view_grad;
         view_grad.sh_degree = state_.gaussians.sh_degree;

@@ -121,9 +121,10 @@ Status DataParallel::CheckReplicasAgree(Backend& backend, const std::string& whe
     if (differs[r] != 0) ranks += (ranks.empty() ? "" : ", ") + std::to_string(r);
   }
   if (ranks.empty()) return Status::Ok();
-  return MakeError(StatusCode::kInternal, "data parallel: at ", where, " the parameters of rank(s) ", ranks,
-                   " differ from rank 0's (checksum of rank ", rank(), ": ", mine, ", rank 0: ", root,
-                   "); the replicas drifted apart (a gradient or statistic not reduced, or a non-deterministic update)");
+  return MakeError(
+      StatusCode::kInternal, "data parallel: at ", where, " the parameters of rank(s) ", ranks,
+      " differ from rank 0's (checksum of rank ", rank(), ": ", mine, ", rank 0: ", root,
+      "); the replicas drifted apart (a gradient or statistic not reduced, or a non-deterministic update)");
 }
 
 }  // namespace atex::train

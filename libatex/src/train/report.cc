@@ -52,8 +52,9 @@ nlohmann::json EvalToJson(const EvalResult& eval) {
     j["camera"] = camera;
     j["views"] = entry.second;
     auto dynamic = dynamic_per_camera.find(camera);
-    j["dynamic_psnr"] = dynamic == dynamic_per_camera.end() ? nlohmann::json(nullptr)
-                                                            : nlohmann::json(dynamic->second.first / dynamic->second.second);
+    j["dynamic_psnr"] = dynamic == dynamic_per_camera.end()
+                            ? nlohmann::json(nullptr)
+                            : nlohmann::json(dynamic->second.first / dynamic->second.second);
     j["dynamic_fraction"] = dynamic == dynamic_per_camera.end() ? 0.0 : dynamic_fraction[camera];
     cameras.push_back(std::move(j));
   }

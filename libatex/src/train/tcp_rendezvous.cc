@@ -119,7 +119,8 @@ Status Serve(int port, int world_size, const std::vector<uint8_t>& blob, Clock::
     unsigned char hello[8];
     ATEX_RETURN_IF_ERROR(ReceiveAll(peer.fd, hello, sizeof(hello), deadline, host, port));
     if (std::memcmp(hello, kMagic, 4) != 0) continue;  // not one of ours (a port scanner): ignore it
-    const uint32_t rank = (uint32_t(hello[4]) << 24) | (uint32_t(hello[5]) << 16) | (uint32_t(hello[6]) << 8) | hello[7];
+    const uint32_t rank =
+        (uint32_t(hello[4]) << 24) | (uint32_t(hello[5]) << 16) | (uint32_t(hello[6]) << 8) | hello[7];
     if (rank == 0 || rank >= uint32_t(world_size) || served[rank]) {
       return MakeError(StatusCode::kInvalidArgument, "rendezvous at port ", port, ": a peer says it is rank ", rank,
                        (rank > 0 && rank < uint32_t(world_size) ? " again" : ""), " (world size ", world_size, ")");

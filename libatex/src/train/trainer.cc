@@ -379,7 +379,8 @@ class Loop {
         const double seconds = Seconds(start);
         if (phase == Phase::kCoarse) summary_.coarse_seconds += seconds, summary_.coarse_steps += step + 1 - first_step;
         if (phase == Phase::kFine) summary_.fine_seconds += seconds, summary_.fine_steps += step + 1 - first_step;
-        if (phase == Phase::kTextures) summary_.textures_seconds += seconds, summary_.texture_steps += step + 1 - first_step;
+        if (phase == Phase::kTextures)
+          summary_.textures_seconds += seconds, summary_.texture_steps += step + 1 - first_step;
         return Status::Ok();
       }
       if (config_.eval_every > 0 && (step + 1) % config_.eval_every == 0 && !last) {

@@ -164,7 +164,8 @@ ATEX_HD void EvaluateSplatVjp(const SplatParams<T>& s, const Vec3<T>& ray, const
                               const Vec3<T>& g_color, T g_alpha, SplatGrad<T>* g, T* g_texels) {
   g->color += g_color;
   const bool textured = s.frame != nullptr;
-  const T factor = !textured ? T(1) : (s.constant != nullptr ? s.constant->alpha_factor : TextureAlphaFactor(smp.texel[3]));
+  const T factor =
+      !textured ? T(1) : (s.constant != nullptr ? s.constant->alpha_factor : TextureAlphaFactor(smp.texel[3]));
   Vec4<T> g_rgba{{T(0), T(0), T(0), T(0)}};
   if (textured) {
     for (int ch = 0; ch < 3; ++ch) g_rgba[ch] = TextureColorResidualVjp(smp.texel[ch], g_color[ch]);

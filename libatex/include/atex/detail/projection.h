@@ -187,7 +187,8 @@ ATEX_HD Vec3<T> ProjectCovariance(const CameraModel<T>& cam, const EwaJacobian<T
   const Mat3<T> cov_cam = cam.rotation * cov * Transpose(cam.rotation);
   T jc[2][3];  // J Σ_cam
   for (int r = 0; r < 2; ++r)
-    for (int c = 0; c < 3; ++c) jc[r][c] = jac.j(r, 0) * cov_cam(0, c) + jac.j(r, 1) * cov_cam(1, c) + jac.j(r, 2) * cov_cam(2, c);
+    for (int c = 0; c < 3; ++c)
+      jc[r][c] = jac.j(r, 0) * cov_cam(0, c) + jac.j(r, 1) * cov_cam(1, c) + jac.j(r, 2) * cov_cam(2, c);
   T out[2][2];
   for (int r = 0; r < 2; ++r)
     for (int c = 0; c < 2; ++c) out[r][c] = jc[r][0] * jac.j(c, 0) + jc[r][1] * jac.j(c, 1) + jc[r][2] * jac.j(c, 2);

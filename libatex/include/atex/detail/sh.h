@@ -75,7 +75,8 @@ ATEX_HD void ShBasisGradient(int degree, const Vec3<T>& v, Vec3<T>* d_basis /* [
   d_basis[9] = {{T(kShC3_0) * T(6) * x * y, T(kShC3_0) * (T(3) * xx - T(3) * yy), T(0)}};
   d_basis[10] = {{T(kShC3_1) * y * z, T(kShC3_1) * x * z, T(kShC3_1) * x * y}};
   d_basis[11] = {{-T(kShC3_2) * T(2) * x * y, T(kShC3_2) * (T(4) * zz - xx - T(3) * yy), T(kShC3_2) * T(8) * y * z}};
-  d_basis[12] = {{-T(kShC3_3) * T(6) * x * z, -T(kShC3_3) * T(6) * y * z, T(kShC3_3) * (T(6) * zz - T(3) * xx - T(3) * yy)}};
+  d_basis[12] = {
+      {-T(kShC3_3) * T(6) * x * z, -T(kShC3_3) * T(6) * y * z, T(kShC3_3) * (T(6) * zz - T(3) * xx - T(3) * yy)}};
   d_basis[13] = {{T(kShC3_4) * (T(4) * zz - T(3) * xx - yy), -T(kShC3_4) * T(2) * x * y, T(kShC3_4) * T(8) * x * z}};
   d_basis[14] = {{T(kShC3_5) * T(2) * x * z, -T(kShC3_5) * T(2) * y * z, T(kShC3_5) * (xx - yy)}};
   d_basis[15] = {{T(kShC3_6) * (T(3) * xx - T(3) * yy), -T(kShC3_6) * T(6) * x * y, T(0)}};

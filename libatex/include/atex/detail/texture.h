@@ -170,7 +170,8 @@ struct BilinearTaps {
 
 template <typename T>
 ATEX_HD BilinearTaps<T> MakeBilinearTaps(const TexCoord<T>& tc, int height, int width) {
-  return {MakeTexelTap(TexelGridCoordinate(tc.u, width), width), MakeTexelTap(TexelGridCoordinate(tc.v, height), height)};
+  return {MakeTexelTap(TexelGridCoordinate(tc.u, width), width),
+          MakeTexelTap(TexelGridCoordinate(tc.v, height), height)};
 }
 
 // One texel's raw RGBA. In device code (float) a single 16-byte read-only load, so
@@ -254,8 +255,8 @@ inline constexpr double kTextureAlphaFactorBound = 1.1052;
 // Growing (new ≥ old per side) reproduces the old piecewise-linear field exactly, so
 // rendering is unchanged up to rounding; shrinking is a plain resample.
 template <typename T>
-ATEX_HD void UpsampleTexture(const T* src /* [h][w][channels] */, int height, int width, T* dst /* [new_h][new_w][channels] */,
-                             int new_height, int new_width, int channels) {
+ATEX_HD void UpsampleTexture(const T* src /* [h][w][channels] */, int height, int width,
+                             T* dst /* [new_h][new_w][channels] */, int new_height, int new_width, int channels) {
   for (int y = 0; y < new_height; ++y) {
     const T gy = new_height > 1 ? T(y) * T(height - 1) / T(new_height - 1) : T(0.5) * T(height - 1);
     const TexelTap<T> ty = MakeTexelTap(gy, height);

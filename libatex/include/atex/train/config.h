@@ -123,7 +123,7 @@ struct Stage1Config {
   double init_hull_fraction = 2.0 / 3.0;  // of init_points from the hull with "hull+volume" and "mvs+hull"
   InitVolumeConfig init_volume;
   InitMvsConfig init_mvs;
-  std::string init_point_cloud;           // "file": PLY (x, y, z [, red/green/blue | f_dc_*]) or COLMAP points3D.txt/.bin
+  std::string init_point_cloud;  // "file": PLY (x, y, z [, red/green/blue | f_dc_*]) or COLMAP points3D.txt/.bin
 };
 
 struct GrowthAblations {
