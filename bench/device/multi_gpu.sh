@@ -23,6 +23,8 @@ BUILD_TREE_OPTIONS="-DATEX_NCCL=ON -DATEX_TESTS=ON -DATEX_BENCHMARKS=OFF" \
   build_tree . "$BUILD" "$(nproc)" atex_cli nccl_data_parallel_test > "$out/build.log" 2>&1 ||
   { tail -20 "$out/build.log"; exit 1; }
 nvidia-smi --query-gpu=index,name,driver_version --format=csv,noheader | tee "$out/gpu.txt"
+# The GPUs' link (NVLink or PCIe) decides what the per-step all-reduce costs.
+nvidia-smi topo -m > "$out/topology.txt" 2>&1 || true
 # First the two-GPU gradient test (kernels/tests/nccl_data_parallel_test.cc): seconds.
 "$(find "$BUILD" -name nccl_data_parallel_test -type f -perm -u+x | head -1)" 2>&1 | tee "$out/nccl_test.log" | tail -3
 # shellcheck disable=SC2206  # MULTI_GPU_ARGS is words
