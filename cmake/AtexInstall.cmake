@@ -60,7 +60,10 @@ if(ATEX_CONFIG_HAVE_WEBP)
   string(APPEND ATEX_PC_REQUIRES_PRIVATE " libwebp")
 endif()
 if(ATEX_CONFIG_HAVE_FFMPEG)
-  string(APPEND ATEX_PC_REQUIRES_PRIVATE " libavformat libavcodec libswscale libavutil")
+  # As plain -l flags, not Requires.private: `pkg-config --static` would pull in FFmpeg's own
+  # private dependencies (libgme, libopenmpt, libbluray, ...), whose static libraries Debian does
+  # not ship; libatex needs only these four, linked shared.
+  string(APPEND ATEX_PC_LIBS_PRIVATE " -lavformat -lavcodec -lswscale -lavutil")
 endif()
 if(OpenEXR_FOUND)
   string(APPEND ATEX_PC_REQUIRES_PRIVATE " OpenEXR")
