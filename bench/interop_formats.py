@@ -68,6 +68,7 @@ def main(argv=None):
     run([args.atex, "convert", source, os.path.join(ours, "src.spz")])
     run([args.atex, "convert", source, os.path.join(ours, "src.ply")])
     run([args.atex, "export", os.path.join(ours, "src.atex"), os.path.join(ours, "src.glb")])
+    run([args.atex, "export", os.path.join(ours, "src.atex"), os.path.join(ours, "src_spz.glb"), "--spz"])
     meshopt = subprocess.run([args.atex, "export", os.path.join(ours, "src.atex"), os.path.join(ours, "src_meshopt.glb"),
                               "--meshopt", "--meshopt-bits", "12"], capture_output=True, text=True).returncode == 0
 
@@ -80,6 +81,8 @@ def main(argv=None):
         ("glTF KHR_gaussian_splatting", os.path.join(ours, "src.glb"), "atex export",
          "read: ours; Babylon.js, glTF-Validator (tests/web)"),
     ]
+    rows.append(("glTF + KHR_gaussian_splatting_compression_spz_2", os.path.join(ours, "src_spz.glb"),
+                 "atex export --spz", "read: ours (converter_gltf_test); glTF-Validator (tests/web)"))
     if meshopt:
         rows.append(("glTF + EXT_meshopt_compression (12-bit)", os.path.join(ours, "src_meshopt.glb"), "atex export --meshopt",
                      "read: ours; Babylon.js, glTF-Validator (tests/web)"))

@@ -25,6 +25,7 @@ struct ExportArgs {
   bool has_time = false;
   std::string frames;
   bool meshopt = false;
+  bool spz = false;
   int meshopt_bits = 0;
   int rotation_bits = 16;
   bool no_textures = false, no_deformation = false, no_raw = false, no_color = false;
@@ -65,6 +66,7 @@ int RunExport(const ExportArgs& a) {
 
   atex::GltfExportOptions gltf;
   gltf.meshopt = a.meshopt;
+  gltf.spz = a.spz;
   gltf.meshopt_float_bits = a.meshopt_bits;
   gltf.meshopt_rotation_bits = a.rotation_bits;
   gltf.textures = !a.no_textures;
@@ -131,6 +133,7 @@ int RunExport(const ExportArgs& a) {
     if (ext == ".gltf") bytes += std::filesystem::file_size(out.parent_path() / (out.stem().string() + ".bin"));
     summary["bytes"] = bytes;
     summary["meshopt"] = a.meshopt;
+    summary["spz"] = a.spz;
   } else if (ext == ".splatv") {
     atex::SplatvOptions options;
     options.samples = a.samples;
@@ -185,6 +188,9 @@ atex::cli::Runner SetupExport(CLI::App& app) {
   atex::cli::AddReal(app, "--time", &a->time, -1e9, 1e9, "glTF: bake the deformation at this scene time")
       ->each([a](const std::string&) { a->has_time = true; });
   app.add_option("--frames", a->frames, "Write one baked .glb per time start:end:step into the output folder");
+  app.add_flag("--spz", a->spz,
+               "glTF: the base attributes as one SPZ stream (KHR_gaussian_splatting_compression_spz_2; lossy, "
+               "~20 bytes per Gaussian; no raw parameters)");
   app.add_flag("--meshopt", a->meshopt,
                "glTF: EXT_meshopt_compression (int16 rotations; floats exact unless --meshopt-bits)");
   app.add_option("--meshopt-bits", a->meshopt_bits,

@@ -36,6 +36,14 @@ cmp -s "$work/a.glb" "$work/m2.glb" || fail "meshopt (exact floats + raw paramet
 [ "$(stat -c %s "$work/q.glb")" -lt "$(stat -c %s "$work/m.glb")" ] || fail "lossy meshopt output is not smaller"
 ok "meshopt exports (exact: lossless; 12-bit: smaller)"
 
+"$atex" export "$scene" "$work/z.glb" --spz > /dev/null
+"$atex" import "$work/z.glb" "$work/z.atex" --json > "$work/z.json"
+grep -q "\"gaussians\": $("$atex" info "$scene" --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["gaussians"])')" \
+  "$work/z.json" || fail "--spz import lost Gaussians: $(cat "$work/z.json")"
+[ "$(stat -c %s "$work/z.glb")" -lt "$(stat -c %s "$work/q.glb")" ] || fail "--spz output is not smaller than lossy meshopt"
+if "$atex" export "$scene" "$work/zm.glb" --spz --meshopt > /dev/null 2>&1; then fail "--spz --meshopt was accepted"; fi
+ok "SPZ-in-glTF export (imports with every Gaussian, smaller than meshopt; not with --meshopt)"
+
 "$atex" export "$scene" "$work/s.splatv" --samples 16 --json > "$work/s.json"
 grep -q '"position_rms_relative"' "$work/s.json" || fail ".splatv export reports no fit: $(cat "$work/s.json")"
 ok ".splatv export reports its fit"

@@ -191,6 +191,11 @@ int main(int argc, char** argv) {
     o.meshopt = true, o.meshopt_float_bits = 14, o.raw_parameters = false;
     flavours.push_back({"meshopt_lossy.glb", o});
   }
+  {
+    atex::GltfExportOptions o;
+    o.spz = true;
+    flavours.push_back({"spz_compressed.glb", o});
+  }
   flavours.push_back({"text_form.gltf", {}});
   {
     atex::Status s = atex::WriteAssetFile((out / "moving.atex").string(), moving);

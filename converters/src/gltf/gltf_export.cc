@@ -14,6 +14,7 @@
 #include "gltf/gltf_container.h"
 #include "gltf/gltf_json_util.h"
 #include "gltf/gltf_names.h"
+#include "gltf/gltf_spz.h"
 #include "gltf/gltf_writer.h"
 
 namespace atex {
@@ -48,6 +49,7 @@ class SplatExporter {
   StatusOr<int> FloatAccessor(const std::vector<float>& data, size_t count, size_t components, const char* type,
                               bool vertex, bool lossy, bool min_max);
   Status AddBase(const Gaussians& g, json& attributes);
+  Status AddBaseSpz(const Gaussians& g, json& attributes, json& khr_extensions);
   Status AddTextures(const TexturePool& textures, size_t n, json& attributes, json& khr_extensions);
   Status AddDeformation(const Gaussians& g, const DeformationField* field, json& attributes, json& khr_extensions);
   StatusOr<json> AddLinear(const Linear& layer, const std::string& where);
@@ -185,6 +187,36 @@ Status SplatExporter::AddBase(const Gaussians& g, json& attributes) {
   return Status::Ok();
 }
 
+// The base attributes as accessors without bufferViews (their type and count only, POSITION with
+// its bounds, as glTF requires) and the SPZ stream that holds their data.
+Status SplatExporter::AddBaseSpz(const Gaussians& g, json& attributes, json& khr_extensions) {
+  const size_t n = g.size();
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> stream, gltf::EncodeSpzForGltf(g));
+  ATEX_ASSIGN_OR_RETURN(int view, writer_.AddBlobView(stream.data(), stream.size()));
+  json min = {std::numeric_limits<float>::max(), std::numeric_limits<float>::max(), std::numeric_limits<float>::max()};
+  json max = {-std::numeric_limits<float>::max(), -std::numeric_limits<float>::max(),
+              -std::numeric_limits<float>::max()};
+  for (size_t i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      min[k] = std::min(min[k].get<float>(), g.positions[i * 3 + size_t(k)]);
+      max[k] = std::max(max[k].get<float>(), g.positions[i * 3 + size_t(k)]);
+    }
+  }
+  attributes[gltf::kAttrPosition] = writer_.AddAccessor(-1, 0, gltf::kComponentFloat, false, n, "VEC3", min, max);
+  attributes[gltf::kAttrRotation] = writer_.AddAccessor(-1, 0, gltf::kComponentFloat, false, n, "VEC4");
+  attributes[gltf::kAttrScale] = writer_.AddAccessor(-1, 0, gltf::kComponentFloat, false, n, "VEC3");
+  attributes[gltf::kAttrOpacity] = writer_.AddAccessor(-1, 0, gltf::kComponentFloat, false, n, "SCALAR");
+  for (int degree = 0; degree <= g.sh_degree; ++degree) {
+    for (int coef = 0; coef <= 2 * degree; ++coef) {
+      attributes[gltf::ShAttribute(degree, coef)] =
+          writer_.AddAccessor(-1, 0, gltf::kComponentFloat, false, n, "VEC3");
+    }
+  }
+  khr_extensions[gltf::kKhrSpz2] = {{"bufferView", view}};
+  writer_.UseExtension(gltf::kKhrSpz2, true);
+  return Status::Ok();
+}
+
 Status SplatExporter::AddTextures(const TexturePool& t, size_t n, json& attributes, json& khr_extensions) {
   std::vector<uint8_t> layout(n * 4);  // [N][4]: height, width, axis_u, axis_v
   for (size_t i = 0; i < n; ++i) {
@@ -221,7 +253,7 @@ Status SplatExporter::AddDeformation(const Gaussians& g, const DeformationField*
                                      json& khr_extensions) {
   const size_t n = g.size();
   json ext = json::object();
-  if (options_.raw_parameters) {
+  if (options_.raw_parameters && !options_.spz) {
     std::vector<float> raw_rotation(n * 4);  // [N][4] (x, y, z, w), unnormalised, bit-exact
     for (size_t i = 0; i < n; ++i) {
       raw_rotation[i * 4 + 0] = g.rotations[i * 4 + 1];
@@ -281,7 +313,7 @@ Status SplatExporter::AddDeformation(const Gaussians& g, const DeformationField*
                     {"heads", heads},
                     {"shCoefficients", c.sh_coeffs}};
   }
-  if (!options_.raw_parameters && field == nullptr) return Status::Ok();
+  if ((!options_.raw_parameters || options_.spz) && field == nullptr) return Status::Ok();
   khr_extensions[gltf::kAtexDeformation] = ext;
   writer_.UseExtension(gltf::kAtexDeformation, false);
   return Status::Ok();
@@ -294,6 +326,10 @@ Status SplatExporter::Build(const Asset& asset) {
     return MakeError(StatusCode::kInvalidArgument,
                      "glTF export: the asset has no Gaussians (glTF accessors need count >= 1)");
   if (n > UINT32_MAX) return MakeError(StatusCode::kLimitExceeded, "glTF export: ", n, " Gaussians exceed 2^32");
+  if (options_.spz && options_.meshopt) {
+    return MakeError(StatusCode::kInvalidArgument, "glTF export: SPZ compression and EXT_meshopt_compression exclude "
+                     "each other (the SPZ stream is already compressed); choose one");
+  }
   if (options_.meshopt && !gltf::MeshoptAvailable()) {
     return MakeError(StatusCode::kUnsupported, "EXT_meshopt_compression needs meshoptimizer, which this build lacks");
   }
@@ -325,7 +361,11 @@ Status SplatExporter::Build(const Asset& asset) {
 
   json attributes = json::object();
   json khr_extensions = json::object();
-  ATEX_RETURN_IF_ERROR(AddBase(*shown, attributes));
+  if (options_.spz) {
+    ATEX_RETURN_IF_ERROR(AddBaseSpz(*shown, attributes, khr_extensions));
+  } else {
+    ATEX_RETURN_IF_ERROR(AddBase(*shown, attributes));
+  }
   ATEX_RETURN_IF_ERROR(Progress(0.6));
   if (options_.textures && asset.textures)
     ATEX_RETURN_IF_ERROR(AddTextures(*asset.textures, n, attributes, khr_extensions));

@@ -14,6 +14,7 @@
 #include "gltf/gltf_import_extensions.h"
 #include "gltf/gltf_import_scene.h"
 #include "gltf/gltf_names.h"
+#include "gltf/gltf_spz.h"
 
 #ifdef ATEX_HAVE_TINYGLTF
 #include "gltf/tinygltf_config.h"
@@ -274,6 +275,24 @@ const json* FindPath(const json& root, std::initializer_list<const char*> keys) 
   return cur;
 }
 
+// The base Gaussians of one splat primitive: from its SPZ stream when the primitive carries
+// KHR_gaussian_splatting_compression_spz_2 (its accessors then have no data), else from the
+// accessors.
+StatusOr<Gaussians> ReadPrimitiveBase(const tinygltf::Model& model, const json& doc, const gltf::SplatPrimitive& sp,
+                                      const GltfImportOptions& options) {
+  const tinygltf::Primitive& primitive = model.meshes[sp.mesh].primitives[sp.primitive];
+  // FindSplatPrimitives found this primitive through the same path, so at() cannot throw here.
+  const json& entry = doc.at("meshes").at(sp.mesh).at("primitives").at(sp.primitive);
+  const json* khr = FindPath(entry, {"extensions", gltf::kKhrGaussianSplatting});
+  const json* spz = khr ? FindPath(*khr, {"extensions", gltf::kKhrSpz2}) : nullptr;
+  if (spz == nullptr) return ReadBase(model, primitive, options);
+  if (primitive.mode != gltf::kModePoints) {
+    return MakeError(StatusCode::kCorrupt, "splat primitive has mode ", primitive.mode,
+                     ", KHR_gaussian_splatting needs POINTS (0)");
+  }
+  return gltf::ReadSpzPrimitive(model, primitive, *khr, options.max_gaussians);
+}
+
 StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, const GltfImportOptions& options) {
   ATEX_ASSIGN_OR_RETURN(std::vector<gltf::SplatPrimitive> splats, gltf::FindSplatPrimitives(model, doc));
   if (splats.empty())
@@ -284,8 +303,7 @@ StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, cons
     // Someone else's file: base attributes of every splat primitive, transforms baked in.
     for (size_t i = 0; i < splats.size(); ++i) {
       const auto& sp = splats[i];
-      const tinygltf::Primitive& primitive = model.meshes[sp.mesh].primitives[sp.primitive];
-      auto g = ReadBase(model, primitive, options);
+      auto g = ReadPrimitiveBase(model, doc, sp, options);
       if (!g.ok()) return g.status().WithContext(StrCat("meshes[", sp.mesh, "].primitives[", sp.primitive, "]"));
       ATEX_RETURN_IF_ERROR(BakeTransform(sp.world, *g));
       if (asset.gaussians.size() + g->size() > options.max_gaussians) {
@@ -316,7 +334,7 @@ StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, cons
   }
   const auto& sp = splats[0];
   const tinygltf::Primitive& primitive = model.meshes[sp.mesh].primitives[sp.primitive];
-  ATEX_ASSIGN_OR_RETURN(asset.gaussians, ReadBase(model, primitive, options));
+  ATEX_ASSIGN_OR_RETURN(asset.gaussians, ReadPrimitiveBase(model, doc, sp, options));
   const json& khr = doc["meshes"][sp.mesh]["primitives"][sp.primitive]["extensions"][gltf::kKhrGaussianSplatting];
   if (!khr.is_object()) return MakeError(StatusCode::kCorrupt, gltf::kKhrGaussianSplatting, " is not an object");
   const json* sub = FindPath(khr, {"extensions"});

@@ -83,9 +83,19 @@ StatusOr<int> GltfWriter::AddView(const ViewSpec& spec) {
   return static_cast<int>(doc_["bufferViews"].size() - 1);
 }
 
+StatusOr<int> GltfWriter::AddBlobView(const uint8_t* bytes, size_t size) {
+  if (meshopt_ || size == 0) return MakeError(StatusCode::kInternal, "blob bufferView of ", size, " bytes");
+  PadTo4(bin_, 0);
+  nlohmann::json view = {{"buffer", 0}, {"byteOffset", bin_.size()}, {"byteLength", size}};
+  bin_.insert(bin_.end(), bytes, bytes + size);
+  doc_["bufferViews"].push_back(view);
+  return static_cast<int>(doc_["bufferViews"].size() - 1);
+}
+
 int GltfWriter::AddAccessor(int view, size_t byte_offset, int component_type, bool normalized, size_t count,
                             const char* type, const nlohmann::json& min, const nlohmann::json& max) {
-  nlohmann::json accessor = {{"bufferView", view}, {"componentType", component_type}, {"count", count}, {"type", type}};
+  nlohmann::json accessor = {{"componentType", component_type}, {"count", count}, {"type", type}};
+  if (view >= 0) accessor["bufferView"] = view;
   if (byte_offset != 0) accessor["byteOffset"] = byte_offset;
   if (normalized) accessor["normalized"] = true;
   if (!min.is_null()) accessor["min"] = min;

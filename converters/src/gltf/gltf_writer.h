@@ -30,7 +30,11 @@ class GltfWriter {
 
   // Adds a bufferView (4-byte aligned) and returns its index.
   StatusOr<int> AddView(const ViewSpec& spec);
-  // Adds an accessor over `view` and returns its index. `type` is "SCALAR", "VEC3", ...
+  // Adds a bufferView of `size` opaque bytes (exact byteLength, no stride, never meshopt-compressed:
+  // e.g. an SPZ stream) and returns its index. Only without meshopt.
+  StatusOr<int> AddBlobView(const uint8_t* bytes, size_t size);
+  // Adds an accessor over `view` and returns its index. `type` is "SCALAR", "VEC3", ... A
+  // negative `view` writes an accessor without a bufferView (data provided by an extension).
   int AddAccessor(int view, size_t byte_offset, int component_type, bool normalized, size_t count,
                   const char* type, const nlohmann::json& min = nullptr, const nlohmann::json& max = nullptr);
 

@@ -9,6 +9,7 @@ list(APPEND ATEX_CONVERTER_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/gltf_import.cc
   ${CMAKE_CURRENT_LIST_DIR}/gltf_import_extensions.cc
   ${CMAKE_CURRENT_LIST_DIR}/gltf_import_scene.cc
+  ${CMAKE_CURRENT_LIST_DIR}/gltf_spz.cc
   ${CMAKE_CURRENT_LIST_DIR}/meshopt_codec.cc
   ${CMAKE_CURRENT_LIST_DIR}/sh_rotation.cc
   ${CMAKE_CURRENT_LIST_DIR}/tinygltf_impl.cc)
@@ -18,6 +19,7 @@ function(atex_converter_gltf_tests)
             ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/gltf_export_test.cc
             ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/gltf_import_test.cc
             ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/gltf_hostile_test.cc
+            ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/gltf_spz_test.cc
     LIBS atex_converters
     LABELS hostile
     TIMEOUT 300)

@@ -84,6 +84,13 @@ struct GltfExportOptions {
   bool color_fallback = true;  // write COLOR_0
   std::optional<UpAxis> up;    // override the asset's up axis (UpAxisOf)
 
+  // KHR_gaussian_splatting_compression_spz_2: the base attributes as one SPZ stream (~20 bytes per
+  // Gaussian at SH degree 3; lossy: 24-bit positions, 8-bit scales, rotations, opacity and colour,
+  // 4-5-bit SH) instead of float accessors. The extension is then required (no fallback data),
+  // the raw parameters are not written (import gives the SPZ-rounded values), and COLOR_0 is
+  // omitted. Not with `meshopt` (kInvalidArgument).
+  bool spz = false;
+
   // EXT_meshopt_compression (kUnsupported when the build lacks meshoptimizer).
   bool meshopt = false;
   // Mantissa bits of the EXPONENTIAL filter for positions, scales, opacities, SH and the
