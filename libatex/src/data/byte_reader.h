@@ -1,5 +1,5 @@
 // Little-endian loads and a bounds-checked cursor over a byte range, for the
-// binary parsers of this module (zip, npy). Not a public header.
+// binary parsers of this module (zip, npy, COLMAP). Not a public header.
 #pragma once
 
 #include <cstddef>
@@ -13,6 +13,12 @@ inline uint32_t LoadLE32(const uint8_t* p) {
   return uint32_t{p[0]} | (uint32_t{p[1]} << 8) | (uint32_t{p[2]} << 16) | (uint32_t{p[3]} << 24);
 }
 inline uint64_t LoadLE64(const uint8_t* p) { return uint64_t{LoadLE32(p)} | (uint64_t{LoadLE32(p + 4)} << 32); }
+inline double LoadLEDouble(const uint8_t* p) {
+  const uint64_t u = LoadLE64(p);
+  double d;
+  std::memcpy(&d, &u, 8);
+  return d;
+}
 
 inline void StoreLE16(uint8_t* p, uint16_t v) {
   p[0] = static_cast<uint8_t>(v);

@@ -7,6 +7,7 @@
 #include "atex/dataset_formats.h"
 #include "atex/image.h"
 #include "data/byte_reader.h"
+#include "data/text_tokens.h"
 
 namespace atex {
 namespace {
@@ -16,34 +17,6 @@ constexpr size_t kCameraFixedBytes = 4 + 4 + 8 + 8;
 constexpr size_t kImageFixedBytes = 4 + 7 * 8 + 4 + 1 + 8;
 constexpr size_t kPoint2dBytes = 8 + 8 + 8;
 constexpr uint64_t kMaxRecords = uint64_t{1} << 24;  // cameras or images in one model
-
-double LoadDouble(const uint8_t* p) {
-  const uint64_t u = LoadLE64(p);
-  double d;
-  std::memcpy(&d, &u, 8);
-  return d;
-}
-
-std::vector<std::string_view> Tokens(std::string_view line) {
-  std::vector<std::string_view> out;
-  size_t i = 0;
-  while (i < line.size()) {
-    while (i < line.size() && (line[i] == ' ' || line[i] == '\t' || line[i] == '\r')) ++i;
-    size_t j = i;
-    while (j < line.size() && line[j] != ' ' && line[j] != '\t' && line[j] != '\r') ++j;
-    if (j > i) out.push_back(line.substr(i, j - i));
-    i = j;
-  }
-  return out;
-}
-
-template <typename T>
-bool ParseNumber(std::string_view token, T* value) {
-  auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), *value);
-  if (ec != std::errc() || ptr != token.data() + token.size()) return false;
-  if constexpr (std::is_floating_point_v<T>) return std::isfinite(*value);
-  return true;
-}
 
 // Lines of a text file with their 1-based numbers.
 class LineReader {
@@ -95,7 +68,7 @@ StatusOr<std::vector<ColmapCamera>> ParseColmapCamerasText(std::string_view text
   LineReader lines(text);
   std::string_view line;
   while (lines.Next(&line)) {
-    const auto t = Tokens(line);
+    const auto t = SplitTokens(line);
     if (t.empty() || t[0][0] == '#') continue;
     const std::string at = StrCat(what, ": COLMAP cameras line ", lines.number());
     if (t.size() < 4) return MakeError(StatusCode::kCorrupt, at, ": expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS...");
@@ -167,7 +140,7 @@ StatusOr<std::vector<ColmapCamera>> ParseColmapCamerasBinary(const uint8_t* data
                        in.remaining(), " bytes follow");
     }
     for (int k = 0; k < params; ++k) {
-      const double v = LoadDouble(in.current());
+      const double v = LoadLEDouble(in.current());
       if (!std::isfinite(v)) return MakeError(StatusCode::kCorrupt, at, ": parameter ", k, " is not finite");
       camera.params.push_back(v);
       in.Skip(8);
@@ -186,7 +159,7 @@ StatusOr<std::vector<ColmapImage>> ParseColmapImagesText(std::string_view text, 
   LineReader lines(text);
   std::string_view line;
   while (lines.Next(&line)) {
-    const auto t = Tokens(line);
+    const auto t = SplitTokens(line);
     if (t.empty() || t[0][0] == '#') continue;
     const std::string at = StrCat(what, ": COLMAP images line ", lines.number());
     if (t.size() != 10) {
@@ -205,7 +178,7 @@ StatusOr<std::vector<ColmapImage>> ParseColmapImagesText(std::string_view text, 
     image.name = std::string(t[9]);
     // The next line holds the image's 2D points (possibly empty): read and checked, not kept.
     if (lines.Next(&line)) {
-      const auto p = Tokens(line);
+      const auto p = SplitTokens(line);
       if (p.size() % 3 != 0) {
         return MakeError(StatusCode::kCorrupt, what, ": COLMAP images line ", lines.number(),
                          ": 2D points are not (X Y POINT3D_ID) triples");
@@ -236,7 +209,7 @@ StatusOr<std::vector<ColmapImage>> ParseColmapImagesBinary(const uint8_t* data, 
     ColmapImage image;
     in.U32(image.id);
     for (int k = 0; k < 7; ++k) {
-      const double v = LoadDouble(in.current());
+      const double v = LoadLEDouble(in.current());
       in.Skip(8);
       if (!std::isfinite(v)) return MakeError(StatusCode::kCorrupt, at, ": pose value ", k, " is not finite");
       (k < 4 ? image.qvec[k] : image.tvec[k - 4]) = v;

@@ -9,38 +9,12 @@
 #include "atex/file_io.h"
 #include "atex/point_cloud.h"
 #include "data/byte_reader.h"
+#include "data/text_tokens.h"
 
 namespace atex {
 namespace {
 
 constexpr size_t kColmapFixedBytes = 8 + 3 * 8 + 3 + 8 + 8;  // id, xyz, rgb, error, track length
-
-double LoadLEDouble(const uint8_t* p) {
-  const uint64_t u = LoadLE64(p);
-  double d;
-  std::memcpy(&d, &u, 8);
-  return d;
-}
-
-// Splits a line into whitespace-separated tokens.
-std::vector<std::string_view> Tokens(std::string_view line) {
-  std::vector<std::string_view> out;
-  size_t i = 0;
-  while (i < line.size()) {
-    while (i < line.size() && (line[i] == ' ' || line[i] == '\t' || line[i] == '\r')) ++i;
-    size_t j = i;
-    while (j < line.size() && line[j] != ' ' && line[j] != '\t' && line[j] != '\r') ++j;
-    if (j > i) out.push_back(line.substr(i, j - i));
-    i = j;
-  }
-  return out;
-}
-
-template <typename T>
-bool ParseNumber(std::string_view token, T* value) {
-  auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), *value);
-  return ec == std::errc() && ptr == token.data() + token.size();
-}
 
 }  // namespace
 
@@ -54,7 +28,7 @@ StatusOr<PointCloud> ParseColmapPointsText(std::string_view text, const std::str
     const std::string_view line = text.substr(pos, end - pos);
     pos = end + 1;
     ++line_number;
-    const std::vector<std::string_view> t = Tokens(line);
+    const std::vector<std::string_view> t = SplitTokens(line);
     if (t.empty() || t[0][0] == '#') continue;
     auto bad = [&](const std::string& why) {
       return MakeError(StatusCode::kCorrupt, what, ": COLMAP points3D line ", line_number, ": ", why);
