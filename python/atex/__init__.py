@@ -33,6 +33,7 @@ from ._atex import (  # noqa: F401  (re-exported API)
     convert,
     decode,
     eval,  # noqa: A001  (atex.eval mirrors `atex eval`; the builtin is untouched outside this module)
+    export_gltf,
     fit,
     read,
     render,
@@ -43,5 +44,5 @@ from ._cameras import orbit_camera  # noqa: F401
 __all__ = [
     "FORMAT_VERSION", "HAVE_CUDA", "HAVE_DRACO", "STATUS_CODES", "Asset", "Camera", "Dataset",
     "DeformationField", "Error", "Gaussians", "Tensor", "TexturePool", "View", "__version__",
-    "convert", "decode", "eval", "fit", "orbit_camera", "read", "render", "train",
+    "convert", "decode", "eval", "export_gltf", "fit", "orbit_camera", "read", "render", "train",
 ]

@@ -84,5 +84,6 @@ void RegisterTensor(py::module_& m);
 void RegisterAsset(py::module_& m);
 void RegisterRender(py::module_& m);
 void RegisterFitTrain(py::module_& m);
+void RegisterExport(py::module_& m);
 
 }  // namespace atex::python

@@ -23,4 +23,5 @@ PYBIND11_MODULE(_atex, m) {
   RegisterAsset(m);
   RegisterRender(m);
   RegisterFitTrain(m);
+  RegisterExport(m);
 }
