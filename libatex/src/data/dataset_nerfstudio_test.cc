@@ -18,6 +18,7 @@
 #include "atex/npy.h"
 #include "atex/point_cloud.h"
 #include "core/test_support.h"
+#include "data/dataset_test_util.h"
 
 namespace atex {
 namespace {
@@ -25,29 +26,9 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-std::array<double, 3> Project(const Camera& c, double x, double y, double z) {
-  const auto& m = c.world_to_camera;
-  const double px = m[0] * x + m[1] * y + m[2] * z + m[3];
-  const double py = m[4] * x + m[5] * y + m[6] * z + m[7];
-  const double pz = m[8] * x + m[9] * y + m[10] * z + m[11];
-  return {c.fx * px / pz + c.cx, c.fy * py / pz + c.cy, pz};
-}
-
-void WriteText(const fs::path& path, const std::string& text) {
-  fs::create_directories(path.parent_path());
-  std::ofstream(path, std::ios::binary) << text;
-}
-
-// A small RGB frame whose pixels identify it.
-Image Frame(int width, int height, int seed) {
-  Image image(width, height, 3);
-  for (int y = 0; y < height; ++y) {
-    for (int x = 0; x < width; ++x) {
-      for (int c = 0; c < 3; ++c) image.at(x, y, c) = float((x * 7 + y * 3 + seed * 11 + c * 5) % 256) / 255.0f;
-    }
-  }
-  return image;
-}
+using dataset_testing::Frame;
+using dataset_testing::Project;
+using dataset_testing::WriteText;
 
 // Blender/OpenGL camera-to-world of a camera at (0, -d, z) looking along +y (world z up):
 // camera right = +x, up = +z, back = -y.

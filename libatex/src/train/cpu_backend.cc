@@ -17,34 +17,6 @@
 
 namespace atex::train {
 
-const char* ParamGroupName(int group) {
-  static const char* kNames[kParamGroupCount] = {"positions", "rotations", "log_scales", "opacity", "sh_dc",
-                                                 "sh_rest",   "texels",    "grid",       "mlp"};
-  return group >= 0 && group < kParamGroupCount ? kNames[group] : "unknown";
-}
-
-void ResetMoments(ModelState* state) {
-  auto zeros_like = [](const Gaussians& g) {
-    Gaussians z;
-    z.sh_degree = g.sh_degree;
-    z.Resize(g.size());
-    return z;
-  };
-  state->m_gaussians = zeros_like(state->gaussians);
-  state->v_gaussians = zeros_like(state->gaussians);
-  const size_t texels = state->textures ? state->textures->texels.size() : 0;
-  state->m_texels.assign(texels, 0.0f);
-  state->v_texels.assign(texels, 0.0f);
-  if (state->deformation) {
-    state->m_deformation = ZerosLike(*state->deformation);
-    state->v_deformation = ZerosLike(*state->deformation);
-  } else {
-    state->m_deformation.reset();
-    state->v_deformation.reset();
-  }
-  state->adam_steps.fill(0);
-}
-
 namespace {
 
 // Gathers rows of `width` values: out[j] = in[source[j]].

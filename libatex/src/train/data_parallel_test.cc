@@ -25,21 +25,10 @@ namespace {
 // Both stages on the moving ball, batches of 4 views, with densification at stage-1 steps 10
 // and 20 of each phase and growth at stage-2 steps 4 and 8: a few seconds on one core.
 TrainConfig SmallConfig() {
-  TrainConfig c = DefaultConfig("dnerf");
-  c.stage1.coarse_iterations = 20;
-  c.stage1.fine_iterations = 20;
+  TrainConfig c = TinyConfig();
   c.stage1.batch_size = 4;
-  c.stage1.init_points = 600;
-  c.stage1.densify.from_step = 5;
-  c.stage1.densify.interval = 10;
-  c.stage1.deformation.grid.channels = 4;
-  c.stage1.deformation.grid.base_resolution = {8, 8, 8, 4};
-  c.stage1.deformation.mlp_width = 16;
-  c.stage2.iterations = 12;
   c.stage2.batch_size = 4;
-  c.stage2.growth_steps = {4, 8};
   c.eval_every = 10;  // the replicas' checksums are compared at every evaluation
-  c.checkpoint_every = 0;
   return c;
 }
 

@@ -1,11 +1,42 @@
-// The conversions between assets, model states and render requests, and the scene extent.
+// The conversions between assets, model states and render requests, the scene extent, and the
+// ModelState helpers of the Backend contract (atex/train/backend.h: group names, zeroed moments).
 #include <algorithm>
 #include <cmath>
 
+#include "atex/deform.h"
+#include "atex/train/backend.h"
 #include "atex/train/trainer.h"
 #include "trained_asset.h"
 
 namespace atex::train {
+
+const char* ParamGroupName(int group) {
+  static const char* kNames[kParamGroupCount] = {"positions", "rotations", "log_scales", "opacity", "sh_dc",
+                                                 "sh_rest",   "texels",    "grid",       "mlp"};
+  return group >= 0 && group < kParamGroupCount ? kNames[group] : "unknown";
+}
+
+void ResetMoments(ModelState* state) {
+  auto zeros_like = [](const Gaussians& g) {
+    Gaussians z;
+    z.sh_degree = g.sh_degree;
+    z.Resize(g.size());
+    return z;
+  };
+  state->m_gaussians = zeros_like(state->gaussians);
+  state->v_gaussians = zeros_like(state->gaussians);
+  const size_t texels = state->textures ? state->textures->texels.size() : 0;
+  state->m_texels.assign(texels, 0.0f);
+  state->v_texels.assign(texels, 0.0f);
+  if (state->deformation) {
+    state->m_deformation = ZerosLike(*state->deformation);
+    state->v_deformation = ZerosLike(*state->deformation);
+  } else {
+    state->m_deformation.reset();
+    state->v_deformation.reset();
+  }
+  state->adam_steps.fill(0);
+}
 
 double CameraExtent(const std::vector<View>& views) {
   if (views.empty()) return 1.0;

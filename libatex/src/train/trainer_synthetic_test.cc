@@ -27,25 +27,6 @@ ProgressCallback RecordPhases(std::vector<std::string>* phases) {
   };
 }
 
-// A few dozen steps of every phase on a small model.
-TrainConfig TinyConfig() {
-  TrainConfig c = DefaultConfig("dnerf");
-  c.stage1.coarse_iterations = 20;
-  c.stage1.fine_iterations = 20;
-  c.stage1.init_points = 600;
-  c.stage1.densify.from_step = 5;
-  c.stage1.densify.interval = 10;
-  c.stage1.deformation.grid.channels = 4;
-  c.stage1.deformation.grid.base_resolution = {8, 8, 8, 4};
-  c.stage1.deformation.mlp_width = 16;
-  c.stage2.iterations = 12;
-  c.stage2.batch_size = 2;
-  c.stage2.growth_steps = {4, 8};
-  c.eval_every = 0;
-  c.checkpoint_every = 0;
-  return c;
-}
-
 TEST(TrainerSynthetic, PhasesRunInOrderAndTexturesGrow) {
   auto data = MovingBall();
   ASSERT_NE(data, nullptr);

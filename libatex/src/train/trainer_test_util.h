@@ -15,6 +15,25 @@
 
 namespace atex::train {
 
+// A few dozen steps of every phase on a small model.
+inline TrainConfig TinyConfig() {
+  TrainConfig c = DefaultConfig("dnerf");
+  c.stage1.coarse_iterations = 20;
+  c.stage1.fine_iterations = 20;
+  c.stage1.init_points = 600;
+  c.stage1.densify.from_step = 5;
+  c.stage1.densify.interval = 10;
+  c.stage1.deformation.grid.channels = 4;
+  c.stage1.deformation.grid.base_resolution = {8, 8, 8, 4};
+  c.stage1.deformation.mlp_width = 16;
+  c.stage2.iterations = 12;
+  c.stage2.batch_size = 2;
+  c.stage2.growth_steps = {4, 8};
+  c.eval_every = 0;
+  c.checkpoint_every = 0;
+  return c;
+}
+
 // A red ball (radius 0.4) moving along x over 4 timesteps, seen by 8 cameras on a ring at
 // distance 3 looking at the origin, on a blue background; camera 0 is held out for testing.
 // 24×24 pixels: a CPU step takes milliseconds.
