@@ -17,6 +17,8 @@
 #   init:    bench/configs/panoptic_init.json on all GPUs (out/init), with FPS (issue 20)
 #   stereo:  bench/configs/panoptic_stereo.json on all GPUs (out/stereo), no FPS (issue 20, third run;
 #            issue20.sh sheets times the models)
+#   temporal: bench/configs/panoptic_temporal.json on all GPUs (out/temporal), no FPS (issue 20, fourth
+#            run; ONLY=REGEX overrides the config's cells)
 # With .oldsrc present, `start` also builds it into build-old in the background, for a later
 # bench/device/raster_ab.sh on the models these jobs train (AB_MODEL_DIR).
 # The two share GPUs through run_matrix's per-GPU lock files: one cell per GPU at a time.
@@ -51,7 +53,7 @@ snapshot() {
     nvidia-smi --query-gpu=index,utilization.gpu,memory.used --format=csv,noheader || true
   } > "$out/progress.txt"
   tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic out/stress out/sweep out/same_time \
-    out/fast_raster out/seeds out/protocols out/base out/base2 out/init out/stereo out/*.log out/*.rc \
+    out/fast_raster out/seeds out/protocols out/base out/base2 out/init out/stereo out/temporal out/*.log out/*.rc \
     2>/dev/null || true
 }
 
@@ -74,6 +76,8 @@ case $phase in
         base2) launch base2 bench/configs/panoptic_base2.json out/base2 "$gpus" --skip-fps ;;
         init) launch init bench/configs/panoptic_init.json out/init "$gpus" ;;
         stereo) launch stereo bench/configs/panoptic_stereo.json out/stereo "$gpus" --skip-fps ;;
+        temporal) launch temporal bench/configs/panoptic_temporal.json out/temporal "$gpus" --skip-fps \
+          ${ONLY:+--only "'$ONLY'"} ;;
         *) echo "unknown job $j" >&2; exit 2 ;;
       esac
     done
