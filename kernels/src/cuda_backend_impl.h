@@ -170,6 +170,9 @@ class CudaBackend final : public Backend {
   size_t count_ = 0;
   int sh_degree_ = 0, sh_coeffs_ = 1;
   Param positions_, rotations_, log_scales_, opacity_, sh_;
+  // [N][2] time windows of time-local Gaussians (model.h), not trained; empty when the model has none.
+  bool has_time_windows_ = false;
+  DeviceBuffer<float> time_windows_;
   bool has_textures_ = false;
   TexturePool layout_;  // dims, axes and offsets (no texels) mirrored on the host
   DeviceBuffer<uint8_t> layout_device_;

@@ -43,6 +43,12 @@ Status CudaBackend::ApplyEdit(const train::GaussianEdit& edit) {
   ATEX_RETURN_IF_ERROR(gather(log_scales_, 3, &edit.log_scales));
   ATEX_RETURN_IF_ERROR(gather(opacity_, 1, nullptr));
   ATEX_RETURN_IF_ERROR(gather(sh_, 3 * sh_coeffs_, nullptr));
+  if (has_time_windows_) {  // constants of each Gaussian: clones and splits inherit their source's window
+    DeviceBuffer<float> windows;
+    ATEX_RETURN_IF_ERROR(windows.Resize(m * 2));
+    ATEX_RETURN_IF_ERROR(GatherRows(time_windows_.data(), windows.data(), 2, source.data(), nullptr, m, stream_));
+    time_windows_ = std::move(windows);
+  }
   if (has_textures_) {
     TexturePool layout;
     for (uint32_t s : edit.source) {

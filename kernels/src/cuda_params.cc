@@ -21,6 +21,16 @@ Status CudaBackend::Load(const ModelState& state) {
   ATEX_RETURN_IF_ERROR(opacity_.Upload(g.opacity_logits, state.m_gaussians.opacity_logits,
                                        state.v_gaussians.opacity_logits, stream_));
   ATEX_RETURN_IF_ERROR(sh_.Upload(g.sh, state.m_gaussians.sh, state.v_gaussians.sh, stream_));
+  has_time_windows_ = g.has_time_windows();
+  if (has_time_windows_) {
+    if (g.time_windows.size() != 2 * count_) {
+      return MakeError(StatusCode::kInvalidArgument, "time_windows has ", g.time_windows.size(), " values for ",
+                       count_, " Gaussians");
+    }
+    ATEX_RETURN_IF_ERROR(time_windows_.Upload(g.time_windows, stream_));
+  } else {
+    time_windows_ = DeviceBuffer<float>();
+  }
 
   has_textures_ = state.textures.has_value();
   if (has_textures_) {
@@ -56,6 +66,8 @@ Status CudaBackend::Load(const ModelState& state) {
 
 Status CudaBackend::Save(ModelState* state) {
   ATEX_RETURN_IF_ERROR(DownloadGaussians(&Param::value, &state->gaussians));
+  state->gaussians.time_windows.clear();
+  if (has_time_windows_) ATEX_RETURN_IF_ERROR(time_windows_.Download(&state->gaussians.time_windows, stream_));
   ATEX_RETURN_IF_ERROR(DownloadGaussians(&Param::m, &state->m_gaussians));
   ATEX_RETURN_IF_ERROR(DownloadGaussians(&Param::v, &state->v_gaussians));
   if (has_textures_) {

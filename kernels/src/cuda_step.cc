@@ -5,6 +5,7 @@
 #include <numeric>
 
 #include "cuda_backend_impl.h"
+#include "deform/time_window_cuda.h"
 #include "loss/colour_affine.h"
 #include "optim/adam_cuda.h"
 
@@ -153,8 +154,11 @@ Status CudaBackend::DeformAt(double time) {
   for (auto* b : {&g_positions_, &g_log_scales_, &g_rotations_, &g_opacity_, &g_sh_}) {
     ATEX_RETURN_IF_ERROR(b->Zero(stream_));
   }
-  return deform_->Forward(deform_layout_, grid_.value.data(), mlp_.value.data(), static_cast<int>(count_),
-                          sh_coeffs_, static_cast<float>(time), Canonical(), Deformed());
+  ATEX_RETURN_IF_ERROR(deform_->Forward(deform_layout_, grid_.value.data(), mlp_.value.data(),
+                                        static_cast<int>(count_), sh_coeffs_, static_cast<float>(time), Canonical(),
+                                        Deformed()));
+  if (!has_time_windows_) return Status::Ok();
+  return ApplyTimeWindows(time_windows_.data(), d_opacity_.data(), count_, static_cast<float>(time), stream_);
 }
 
 // Fills the render inputs of one view: the canonical Gaussians (coarse stage) or the

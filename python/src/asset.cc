@@ -48,6 +48,7 @@ py::dict GaussianTensors(const GaussiansPtr& g) {
   out["log_scales"] = tensor(g->log_scales, {n, 3});
   out["opacity_logits"] = tensor(g->opacity_logits, {n});
   out["sh"] = tensor(g->sh, {n, g->sh_coeffs(), 3});
+  if (g->has_time_windows()) out["time_windows"] = tensor(g->time_windows, {n, 2});
   return out;
 }
 
@@ -82,6 +83,15 @@ void RegisterGaussians(py::module_& m) {
         const auto& g = *self.cast<const GaussiansView&>().g;
         return ArrayView(g.sh.data(), {static_cast<py::ssize_t>(g.size()), g.sh_coeffs(), 3}, self);
       })
+      .def_property_readonly(
+          "time_windows",
+          [](py::object self) -> py::object {
+            const auto& g = *self.cast<const GaussiansView&>().g;
+            if (!g.has_time_windows()) return py::none();
+            return ArrayView(g.time_windows.data(), {static_cast<py::ssize_t>(g.size()), 2}, self);
+          },
+          "[N, 2] (centre time, inverse width) of time-local Gaussians (docs/conventions.md §3), or None "
+          "when the asset has none; a deformed set has none (the window is applied to its opacity).")
       .def("tensors", [](const GaussiansView& v) { return GaussianTensors(v.g); },
            "The arrays as atex.Tensor objects (DLPack: torch.from_dlpack takes them without a copy), by name.")
       .def("__repr__", [](const GaussiansView& v) {

@@ -98,7 +98,13 @@ Asset AssetFromGaussians(Gaussians g, const std::string& path, nlohmann::json so
 
 // The Gaussians to write to a static format: canonical, or deformed to options.time.
 StatusOr<Gaussians> GaussiansForOutput(const Asset& asset, const ConvertOptions& options, ConvertReport* report) {
-  if (!options.time) return asset.gaussians;
+  if (!options.time) {
+    if (asset.gaussians.has_time_windows()) {  // their canonical set would show every one at every time
+      return MakeError(StatusCode::kInvalidArgument,
+                       "the asset has time-local Gaussians (GTWN): give the time to export with --time T");
+    }
+    return asset.gaussians;
+  }
   if (!std::isfinite(*options.time)) return MakeError(StatusCode::kInvalidArgument, "--time is not finite");
   if (!asset.deformation) {
     if (report) report->notes.push_back("static asset: --time has no effect");

@@ -371,6 +371,13 @@ Status SplatExporter::Build(const Asset& asset) {
     ATEX_RETURN_IF_ERROR(AddTextures(*asset.textures, n, attributes, khr_extensions));
   const DeformationField* field =
       (options_.deformation && !options_.time && asset.deformation) ? &*asset.deformation : nullptr;
+  if (field != nullptr && asset.gaussians.has_time_windows()) {
+    // The glTF extension carries the canonical Gaussians and the field, not the windows: every
+    // time-local Gaussian would show at every time.
+    return MakeError(StatusCode::kUnsupported,
+                     "glTF export: the asset has time-local Gaussians (GTWN), which the deformation extension "
+                     "cannot carry; export one time with --time T");
+  }
   ATEX_RETURN_IF_ERROR(AddDeformation(*shown, field, attributes, khr_extensions));
   ATEX_RETURN_IF_ERROR(Progress(0.9));
 

@@ -32,6 +32,10 @@ Gaussians Subset(const Gaussians& g, const std::vector<uint32_t>& kept) {
     out.opacity_logits[j] = g.opacity_logits[i];
     std::copy_n(&g.sh[i * k], k, &out.sh[j * k]);
   }
+  if (g.has_time_windows()) {
+    out.time_windows.resize(kept.size() * 2);
+    for (size_t j = 0; j < kept.size(); ++j) std::copy_n(&g.time_windows[kept[j] * 2], 2, &out.time_windows[j * 2]);
+  }
   return out;
 }
 

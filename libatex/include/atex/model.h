@@ -38,19 +38,38 @@ struct BasicGaussians {
   std::vector<T> log_scales;      // [N][3] natural log of the standard deviations along the local axes
   std::vector<T> opacity_logits;  // [N]    opacity = sigmoid(logit)
   std::vector<T> sh;              // [N][K][3], K = ShCoeffCount(sh_degree); coefficient-major, RGB innermost; k=0 is DC
+  // [N][2] (centre c in scene time, inverse width k >= 0) or empty: time-local Gaussians
+  // (docs/conventions.md §3, "Time-local Gaussians"). At time t the deformed opacity logit is lowered by
+  // TimeWindowPenalty(c, k, t); k = 0 leaves a Gaussian as it is. Empty: none is time-local.
+  // Only deformed (4D) models have them; the deformed Gaussians of one time have none.
+  std::vector<T> time_windows;
 
   size_t size() const { return opacity_logits.size(); }
   int sh_coeffs() const { return ShCoeffCount(sh_degree); }
+  bool has_time_windows() const { return !time_windows.empty(); }
 
-  // Resizes every array for n Gaussians (new entries are zero).
+  // Resizes every array for n Gaussians (new entries are zero; time_windows only when present).
   void Resize(size_t n) {
     positions.resize(n * 3);
     rotations.resize(n * 4);
     log_scales.resize(n * 3);
     opacity_logits.resize(n);
     sh.resize(n * static_cast<size_t>(sh_coeffs()) * 3);
+    if (!time_windows.empty()) time_windows.resize(n * 2);
   }
 };
+
+// The largest amount TimeWindowPenalty takes off a logit: far outside its window a
+// Gaussian's opacity is sigmoid(logit - 40) < 1e-17, and every value stays finite.
+inline constexpr double kMaxTimeWindowPenalty = 40.0;
+// The time window of a time-local Gaussian, in logit space: ½(k·(t − c))², capped at
+// kMaxTimeWindowPenalty (docs/conventions.md §3, "Time-local Gaussians"). 0 when k = 0.
+template <typename T>
+T TimeWindowPenalty(T centre, T inverse_width, double time) {
+  const double q = double(inverse_width) * (time - double(centre));
+  const double penalty = 0.5 * q * q;
+  return static_cast<T>(penalty < kMaxTimeWindowPenalty ? penalty : kMaxTimeWindowPenalty);
+}
 using Gaussians = BasicGaussians<float>;
 
 // ---------------------------------------------------------------------------

@@ -41,6 +41,7 @@ template <typename T>
   ATEX_CHECK(Arrays("rotations", ga.rotations, gb.rotations, t.rotations));
   ATEX_CHECK(Arrays("log_scales", ga.log_scales, gb.log_scales, t.log_scales));
   ATEX_CHECK(Arrays("opacity_logits", ga.opacity_logits, gb.opacity_logits, t.opacities));
+  ATEX_CHECK(Arrays("time_windows", ga.time_windows, gb.time_windows, 0.0));
   ATEX_CHECK(Arrays("sh", ga.sh, gb.sh, t.sh));
   ATEX_CHECK(Same("has textures", a.textures.has_value(), b.textures.has_value()));
   if (a.textures) {

@@ -84,6 +84,7 @@ class AssetDecoder {
                                    {ChunkId::kGscl, 3, n, &g.log_scales},
                                    {ChunkId::kGsh0, 3, n, &dc}};
     if (k > 1) jobs.push_back({ChunkId::kGshr, 3 * (k - 1), n, &rest});
+    if (Has(ChunkId::kGtwn)) jobs.push_back({ChunkId::kGtwn, 2, n, &g.time_windows});
     if (textures) jobs.push_back({ChunkId::kTexl, kTexelChannels, textures->texel_count(), &textures->texels});
     if (field) {
       jobs.push_back({ChunkId::kDgrd, 1, GridValueCount(field->config), &grids});
@@ -170,6 +171,9 @@ class AssetDecoder {
     const int deform = Has(ChunkId::kDcfg) + Has(ChunkId::kDgrd) + Has(ChunkId::kDmlp);
     if (deform != 0 && deform != 3) {
       return MakeError(StatusCode::kCorrupt, "DCFG, DGRD and DMLP must appear together; ", deform, " of 3 are present");
+    }
+    if (Has(ChunkId::kGtwn) && deform == 0) {
+      return MakeError(StatusCode::kCorrupt, "GTWN (time windows) needs a deformation field, but DCFG is missing");
     }
     return Status::Ok();
   }

@@ -263,6 +263,10 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
     }
     jobs.push_back(StreamJob(ChunkId::kGsh0, std::move(sh_dc), n, 3, o.sh_dc, ctx, "sh_dc"));
     if (k > 1) jobs.push_back(StreamJob(ChunkId::kGshr, std::move(sh_rest), n, 3 * (k - 1), o.sh_rest, ctx, "sh_rest"));
+    if (g.has_time_windows()) {  // f32 always: window centres are times, and a narrow window needs their precision
+      jobs.push_back(
+          StreamJobRef(ChunkId::kGtwn, g.time_windows, n, 2, ScalarEncoding::kFloat32, ctx, "time_windows"));
+    }
     if (asset.textures) {
       const TexturePool& t = *asset.textures;
       jobs.push_back(

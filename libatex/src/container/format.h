@@ -35,7 +35,7 @@ inline constexpr uint64_t kGhdrSize = 16;
 inline constexpr uint64_t kDcfgSize = 104;
 inline constexpr int kDcfgMaxScales = 8;
 
-// Chunk types of version 1.0, in the order writers emit them.
+// Chunk types of version 1.1 (GTWN is new in 1.1), in the order writers emit them.
 enum class ChunkId : int {
   kMeta,
   kGhdr,
@@ -45,6 +45,7 @@ enum class ChunkId : int {
   kGopa,
   kGsh0,
   kGshr,
+  kGtwn,
   kTlay,
   kTexl,
   kDcfg,
@@ -70,6 +71,7 @@ inline constexpr std::array<ChunkTypeInfo, static_cast<size_t>(ChunkId::kCount)>
     {"GOPA", true, true, "opacities"},
     {"GSH0", true, true, "sh_dc"},
     {"GSHR", true, false, "sh_rest"},
+    {"GTWN", true, false, "opacities"},
     {"TLAY", true, false, "textures"},
     {"TEXL", true, false, "textures"},
     {"DCFG", true, false, "deformation"},

@@ -265,6 +265,44 @@ TEST(RoundTrip, InvalidAssetsAreRefusedBeforeWriting) {
   EXPECT_NE(bytes.status().message().find("texels row 0 component 3"), std::string::npos) << bytes.status().message();
 }
 
+// Time windows (GTWN, format 1.1): exact at every encoding of the other streams, the file says
+// 1.1 only when it has them, and they need a deformation field and non-negative widths.
+TEST(RoundTrip, TimeWindowsAreExactAndMakeTheFileVersion11) {
+  Asset asset = MakeSyntheticAsset({});
+  const size_t n = asset.gaussians.size();
+  asset.gaussians.time_windows.resize(2 * n);
+  for (size_t i = 0; i < n; ++i) {
+    asset.gaussians.time_windows[2 * i] = 0.001f * float(i) + 1e-7f;  // f16 would round these
+    asset.gaussians.time_windows[2 * i + 1] = i % 3 == 0 ? 0.0f : 57.99f;
+  }
+  WriteOptions lossy;
+  lossy.positions = ScalarEncoding::kFloat16;
+  lossy.opacities = ScalarEncoding::kQuant8;
+  for (const WriteOptions& w : {WriteOptions{}, lossy}) {
+    std::vector<uint8_t> bytes;
+    const Asset back = RoundTrip(asset, w, &bytes);
+    EXPECT_EQ(back.gaussians.time_windows, asset.gaussians.time_windows);
+    auto info = InspectContainer(bytes.data(), bytes.size());
+    ASSERT_TRUE(info.ok()) << info.status().ToString();
+    EXPECT_EQ(info->version_minor, 1);
+  }
+  std::vector<uint8_t> plain;
+  RoundTrip(MakeSyntheticAsset({}), {}, &plain);
+  auto info = InspectContainer(plain.data(), plain.size());
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info->version_minor, 0);  // no GTWN: a 1.0 file, byte for byte as before
+
+  Asset negative = asset;
+  negative.gaussians.time_windows[3] = -1.0f;
+  EXPECT_EQ(EncodeAsset(negative, {}).status().code(), StatusCode::kOutOfRange);
+  Asset still = asset;
+  still.deformation.reset();
+  EXPECT_EQ(EncodeAsset(still, {}).status().code(), StatusCode::kInvalidArgument);
+  Asset short_windows = asset;
+  short_windows.gaussians.time_windows.pop_back();
+  EXPECT_FALSE(EncodeAsset(short_windows, {}).ok());
+}
+
 TEST(RoundTrip, StatsCanBeLeftOut) {
   const Asset asset = MakeSyntheticAsset({});
   WriteOptions w;

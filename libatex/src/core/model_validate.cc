@@ -58,6 +58,15 @@ Status ValidateGaussians(const Gaussians& g) {
   ATEX_RETURN_IF_ERROR(CheckArray("log_scales", g.log_scales, n, 3));
   ATEX_RETURN_IF_ERROR(CheckArray("opacity_logits", g.opacity_logits, n, 1));
   ATEX_RETURN_IF_ERROR(CheckArray("sh", g.sh, n, static_cast<size_t>(g.sh_coeffs()) * 3));
+  if (g.has_time_windows()) {
+    ATEX_RETURN_IF_ERROR(CheckArray("time_windows", g.time_windows, n, 2));
+    for (size_t i = 0; i < n; ++i) {
+      if (g.time_windows[2 * i + 1] < 0) {
+        return MakeError(StatusCode::kOutOfRange, "time_windows element ", i, " component 1 (inverse width) is ",
+                         g.time_windows[2 * i + 1], ", below 0");
+      }
+    }
+  }
   return Status::Ok();
 }
 
@@ -307,6 +316,10 @@ Status ValidateAsset(const Asset& asset) {
     const size_t n = asset.gaussians.size();
     if (asset.textures) ATEX_RETURN_IF_ERROR(ValidateTextures(*asset.textures, n));
     if (asset.deformation) ATEX_RETURN_IF_ERROR(ValidateDeformation(*asset.deformation, asset.gaussians.sh_coeffs()));
+    if (asset.gaussians.has_time_windows() && !asset.deformation) {
+      return MakeError(StatusCode::kInvalidArgument,
+                       "time_windows (time-local Gaussians) need a deformation field: a static asset has no time");
+    }
     if (asset.stats) ATEX_RETURN_IF_ERROR(ValidateStats(*asset.stats, n));
     return ValidateMetadata(asset.metadata, asset);
   } catch (const std::exception& e) {

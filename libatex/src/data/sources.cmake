@@ -22,6 +22,7 @@ list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/knn.cc
   ${CMAKE_CURRENT_LIST_DIR}/init.cc
   ${CMAKE_CURRENT_LIST_DIR}/init_sources.cc
+  ${CMAKE_CURRENT_LIST_DIR}/transient_hull.cc
   ${CMAKE_CURRENT_LIST_DIR}/mvs.cc
   ${CMAKE_CURRENT_LIST_DIR}/mvs_fusion.cc
   ${CMAKE_CURRENT_LIST_DIR}/point_cloud_ply.cc
@@ -47,6 +48,10 @@ function(atex_data_tests)
     endif()
     target_compile_definitions(data_dataset_test PRIVATE ATEX_FFMPEG_EXECUTABLE="${ffmpeg}")
   endif()
+  atex_add_test(NAME data_transient_hull_test
+    SOURCES ${dir}/transient_hull_test.cc
+    LIBS atex
+    TIMEOUT 300)
   atex_add_test(NAME data_mvs_test
     SOURCES ${dir}/mvs_test.cc
     LIBS atex

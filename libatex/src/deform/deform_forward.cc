@@ -98,6 +98,20 @@ void ForwardBlock(const BasicDeformationField<T>& field, const Layout& l,
 
 }  // namespace
 
+// The time windows of time-local Gaussians (docs/conventions.md §3, "Time-local
+// Gaussians"): a constant taken off the deformed logit, so DeformBackward passes the
+// opacity gradient through unchanged.
+namespace {
+template <typename T>
+void ApplyTimeWindows(const BasicGaussians<T>& canonical, double time, BasicGaussians<T>* deformed) {
+  if (!canonical.has_time_windows()) return;
+  for (size_t i = 0; i < canonical.size(); ++i) {
+    deformed->opacity_logits[i] -=
+        TimeWindowPenalty(canonical.time_windows[2 * i], canonical.time_windows[2 * i + 1], time);
+  }
+}
+}  // namespace
+
 template <typename T>
 Status DeformForward(const BasicDeformationField<T>& field, const BasicGaussians<T>& canonical, double time,
                      std::type_identity_t<BasicGaussians<T>>* deformed,
@@ -108,6 +122,7 @@ Status DeformForward(const BasicDeformationField<T>& field, const BasicGaussians
   }
   const Layout l = deform_internal::MakeLayout(field, canonical.size());
   *deformed = canonical;  // residuals are added below; disabled heads leave values as they are
+  deformed->time_windows.clear();  // applied to the opacity logits below: a deformed set has none
 
   if (cache != nullptr) {
     cache->count = l.n;
@@ -143,6 +158,7 @@ Status DeformForward(const BasicDeformationField<T>& field, const BasicGaussians
       ForwardBlock(field, l, views, map, canonical, begin, end, /*lazy=*/blocks == 1, scratch, cache, deformed);
     }
   }
+  ApplyTimeWindows(canonical, time, deformed);
   return Status::Ok();
 }
 

@@ -133,6 +133,10 @@ Status CheckGaussianShapes(const BasicGaussians<T>& g, const char* what) {
                      " (positions ", g.positions.size(), ", rotations ", g.rotations.size(), ", log_scales ",
                      g.log_scales.size(), ", sh ", g.sh.size(), " for K = ", k, ")");
   }
+  if (!g.time_windows.empty() && g.time_windows.size() != 2 * n) {
+    return MakeError(StatusCode::kInvalidArgument, what, ": time_windows has ", g.time_windows.size(),
+                     " values for N = ", n, " (2 per Gaussian, or none)");
+  }
   return Status::Ok();
 }
 

@@ -203,7 +203,12 @@ Status CpuProbeRenderer::Deform(const DeformationField& field, const Gaussians& 
       for (int k = 0; k < 3; ++k) g.log_scales[3 * i + k] += v[7 + k];
       g.opacity_logits[i] += v[10];
       for (size_t k = 0; k < sh; ++k) g.sh[sh * i + k] += v[11 + k];
+      if (canonical.has_time_windows()) {  // as DeformForward does
+        g.opacity_logits[i] -=
+            TimeWindowPenalty(canonical.time_windows[2 * i], canonical.time_windows[2 * i + 1], times[t]);
+      }
     }
+    g.time_windows.clear();
   }
   Evict(n);
   return Status::Ok();

@@ -48,6 +48,7 @@ Asset SubsetGaussians(const Asset& asset, const std::vector<uint8_t>& keep) {
   out.gaussians.log_scales = SubsetRows(g.log_scales, n, keep);
   out.gaussians.opacity_logits = SubsetRows(g.opacity_logits, n, keep);
   out.gaussians.sh = SubsetRows(g.sh, n, keep);
+  if (g.has_time_windows()) out.gaussians.time_windows = SubsetRows(g.time_windows, n, keep);
   if (asset.textures) {
     const TexturePool& t = *asset.textures;
     TexturePool p;

@@ -54,10 +54,13 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(InitMvsConfig, max_image_side, n
                                                 max_depth_planes, neighbors,
                                                 best_neighbors, window_radius, min_zncc, min_texture, max_cost_ratio,
                                                 min_consistent_views, max_reprojection_px, max_relative_depth)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(FastObjectsConfig, enabled, points, hull_resolution, max_presence,
+                                                window_frames)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(Stage1Config, coarse_iterations, fine_iterations, batch_size,
                                                 same_time_batches, lambda_dssim, sh_degree, sh_increase_interval, lr,
                                                 densify, regularizer, deformation, init_method, init_points,
-                                                init_hull_fraction, init_volume, init_mvs, init_point_cloud)
+                                                init_hull_fraction, init_volume, init_mvs, init_point_cloud,
+                                                fast_objects)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(GrowthAblations, temporal_peak, anisotropic,
                                                 visibility_normalization)
 

@@ -128,6 +128,11 @@ void ValidateStage1(const Stage1Config& s, Ranges& r) {
   r.In(p + "init_mvs.min_consistent_views", m.min_consistent_views, 1, 1 << 10);
   r.In(p + "init_mvs.max_reprojection_px", m.max_reprojection_px, 1e-6, 1e3);
   r.In(p + "init_mvs.max_relative_depth", m.max_relative_depth, 1e-9, 1.0);
+  const FastObjectsConfig& f = s.fast_objects;  // the ranges of atex/transient_hull.h
+  r.In(p + "fast_objects.points", f.points, 0, 1 << 24);
+  r.In(p + "fast_objects.hull_resolution", f.hull_resolution, 4, 512);
+  r.In(p + "fast_objects.max_presence", f.max_presence, 1e-6, 1.0 - 1e-6);
+  r.In(p + "fast_objects.window_frames", f.window_frames, 1e-3, 1e6);
   if (r.status().ok() && s.init_method == "file" && s.init_point_cloud.empty()) {
     r.Fail(MakeError(StatusCode::kInvalidArgument, p, "init_method=file needs ", p,
                      "init_point_cloud (a PLY or COLMAP ", "points3D.txt/.bin)"));
@@ -235,6 +240,16 @@ Status CrossCheckConfig(const TrainConfig& config, const Dataset& dataset, int s
                   s1.coarse_iterations + s1.fine_iterations, " stage-1 steps: densification never runs"));
     }
     if (s1.coarse_iterations + s1.fine_iterations == 0) warn("stage 1 has 0 steps: the initial cloud is the model");
+    const bool timed_views = !dataset.train_views().empty() && dataset.train_views()[0].timestep >= 0;
+    if (s1.fast_objects.enabled && (!dataset.has_masks() || !timed_views)) {
+      return MakeError(StatusCode::kInvalidArgument,
+                       "stage1.fast_objects.enabled needs a multi-view dataset with timesteps and foreground masks "
+                       "(its seeds come from every timestep's visual hull); '", dataset.name(), "' has ",
+                       timed_views ? "no masks" : "no timesteps");
+    }
+    if (s1.fast_objects.enabled && s1.fine_iterations == 0) {
+      warn("stage1.fast_objects.enabled with stage1.fine_iterations=0: the seeds are added where the fine stage starts");
+    }
   }
   if (stages & kStage2) {
     const Stage2Config& s2 = config.stage2;

@@ -75,6 +75,9 @@ TEST(ConfigCheck, OutOfRangeValuesNameTheKey) {
       {"camera_colour.keep=0", "camera_colour.keep"},
       {"camera_colour.views_per_camera=0", "camera_colour.views_per_camera"},
       {"camera_colour.first_step=0", "camera_colour.first_step"},
+      {"stage1.fast_objects.max_presence=1", "stage1.fast_objects.max_presence"},
+      {"stage1.fast_objects.window_frames=0", "stage1.fast_objects.window_frames"},
+      {"stage1.fast_objects.points=-5", "stage1.fast_objects.points"},
   };
   for (const auto& [assignment, key] : cases) {
     TrainConfig config = DefaultConfig("dnerf");
@@ -143,6 +146,19 @@ TEST(ConfigCheck, ContradictionsNameBothSettings) {
   EXPECT_NE(s.message().find("stage2.textures"), std::string::npos) << s.ToString();
   config.stage2.textures = TextureMode::kNone;
   EXPECT_TRUE(CrossCheckConfig(config, *dataset, kBothStages, nullptr).ok());
+}
+
+// Fast-object seeds come from per-timestep visual hulls: a dataset without masks (this one, a
+// monocular D-NeRF-like set) must be refused before anything trains, naming the key.
+TEST(ConfigCheck, FastObjectsNeedMasksAndTimesteps) {
+  auto dataset = TinyRgbaDataset(std::nullopt);
+  TrainConfig config = DefaultConfig("dnerf");
+  config.stage1.fast_objects.enabled = true;
+  const Status s = CrossCheckConfig(config, *dataset, kStage1, nullptr);
+  EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(s.message().find("stage1.fast_objects.enabled"), std::string::npos) << s.ToString();
+  config.stage1.fast_objects.enabled = false;
+  EXPECT_TRUE(CrossCheckConfig(config, *dataset, kStage1, nullptr).ok());
 }
 
 TEST(ConfigCheck, SuspiciousCombinationsWarn) {

@@ -39,6 +39,7 @@ Gaussians GatherGaussians(const Gaussians& g, const std::vector<uint32_t>& sourc
   out.log_scales = GatherRows(g.log_scales, 3, source, zero_rows);
   out.opacity_logits = GatherRows(g.opacity_logits, 1, source, zero_rows);
   out.sh = GatherRows(g.sh, 3 * g.sh_coeffs(), source, zero_rows);
+  if (g.has_time_windows()) out.time_windows = GatherRows(g.time_windows, 2, source, zero_rows);
   return out;
 }
 

@@ -5,6 +5,7 @@
 
 #include "atex/deform.h"
 #include "atex/init.h"
+#include "atex/transient_hull.h"
 #include "atex/world_up.h"
 #include "trained_asset.h"
 
@@ -106,6 +107,48 @@ StatusOr<Stage1Start> InitialStage1State(const Dataset& data, const TrainConfig&
   start.state.deformation = std::move(field);
   ResetMoments(&start.state);
   return start;
+}
+
+StatusOr<std::string> AddFastObjectSeeds(const Dataset& data, const TrainConfig& config, Backend& backend) {
+  const FastObjectsConfig& f = config.stage1.fast_objects;
+  InitOptions init;
+  init.seed = config.seed;
+  init.sh_degree = config.stage1.sh_degree;
+  TransientSeedOptions options;
+  options.points = f.points;
+  options.hull_resolution = f.hull_resolution;
+  options.max_presence = f.max_presence;
+  options.window_frames = f.window_frames;
+  TransientSeedReport report;
+  ATEX_ASSIGN_OR_RETURN(Gaussians seeds, TransientSeeds(data, init, options, &report));
+
+  ModelState state;
+  ATEX_RETURN_IF_ERROR(backend.Save(&state));
+  if (state.textures) {
+    return MakeError(StatusCode::kInvalidArgument, "fast-object seeds are added in stage 1, before textures");
+  }
+  Gaussians& g = state.gaussians;
+  if (seeds.sh_degree != g.sh_degree) {
+    return MakeError(StatusCode::kInternal, "fast-object seeds of SH degree ", seeds.sh_degree, " for a model of ",
+                     g.sh_degree);
+  }
+  const size_t old_count = g.size(), added = seeds.size();
+  if (!g.has_time_windows()) g.time_windows.assign(old_count * 2, 0.0f);
+  auto append = [](std::vector<float>& to, const std::vector<float>& from) { to.insert(to.end(), from.begin(), from.end()); };
+  append(g.positions, seeds.positions);
+  append(g.rotations, seeds.rotations);
+  append(g.log_scales, seeds.log_scales);
+  append(g.opacity_logits, seeds.opacity_logits);
+  append(g.sh, seeds.sh);
+  append(g.time_windows, seeds.time_windows);
+  for (Gaussians* moments : {&state.m_gaussians, &state.v_gaussians}) {
+    moments->time_windows.clear();
+    moments->Resize(old_count + added);  // new rows are zero: fresh Adam moments
+  }
+  ATEX_RETURN_IF_ERROR(backend.Load(state));
+  return StrCat("added ", added, " fast-object seeds (time-local Gaussians) from ", report.transient,
+                " transient (timestep, voxel) pairs of ", report.timesteps, " timesteps x ", report.voxels,
+                " voxels; window 1/k = ", f.window_frames, " frames of ", report.frame_interval);
 }
 
 }  // namespace atex::train

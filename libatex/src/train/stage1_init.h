@@ -22,4 +22,11 @@ struct Stage1Start {
 // unreadable point-cloud file) and kInvalidArgument for an init_hull_fraction outside [0, 1].
 StatusOr<Stage1Start> InitialStage1State(const Dataset& data, const TrainConfig& config);
 
+// Appends the fast-object seeds of stage1.fast_objects (atex/transient_hull.h) to the model
+// that `backend` holds, with zero Adam moments; the Gaussians already there keep their
+// parameters and moments and get no window (k = 0). Called once, where the fine stage
+// starts. Returns the training log's line. Errors: TransientSeeds' (a dataset without
+// masks or timesteps), kInvalidArgument for a model with textures.
+StatusOr<std::string> AddFastObjectSeeds(const Dataset& data, const TrainConfig& config, Backend& backend);
+
 }  // namespace atex::train

@@ -118,6 +118,10 @@ class Loop {
         }
       }
       if (phase == Phase::kTextures && first > 0) has_texture_pool_ = config_.stage2.textures != TextureMode::kNone;
+      if (phase == Phase::kFine && first == 0 && config_.stage1.fast_objects.enabled) {
+        ATEX_ASSIGN_OR_RETURN(std::string added, AddFastObjectSeeds(data_, config_, backend_));
+        Event(added);
+      }
       ATEX_RETURN_IF_ERROR(RunPhase(phase, first));
     }
     return Finish();

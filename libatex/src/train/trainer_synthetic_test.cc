@@ -1,6 +1,7 @@
 // The training loop on a synthetic dynamic scene that every machine has (no ../shared/data):
 // resume after an interrupted run, rollback of a non-finite step, the time limit, the
 // order of the phases and texture growth. The real-data tests are trainer_test.cc.
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -8,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include "atex/container.h"
 #include "atex/dataset.h"
 #include "atex/train/backend.h"
 #include "atex/train/checkpoint.h"
@@ -63,6 +65,59 @@ TEST(TrainerSynthetic, ResumeAfterAnInterruptedRunReproducesTheUninterruptedOne)
   TrainConfig config = TinyConfig();
   config.checkpoint_every = 5;
   // Killed at fine step 10 (the last checkpoint written), then a new process resumes.
+  ExpectResumeReproducesTheStraightRun(*data, config, 10, dir.path());
+}
+
+// Fast-object seeds (stage1.fast_objects): added once where the fine stage starts, they keep
+// their time windows through densification (clones inherit them) into the asset, and a run
+// resumed from a checkpoint after that point ends where the uninterrupted one does.
+TrainConfig FastObjectsConfig() {
+  TrainConfig config = TinyConfig();
+  config.stage1.fast_objects.enabled = true;
+  config.stage1.fast_objects.points = 150;
+  config.stage1.fast_objects.hull_resolution = 24;
+  config.stage1.fast_objects.max_presence = 0.3;  // 4 timesteps: voxels held at one time only
+  return config;
+}
+
+TEST(TrainerSynthetic, FastObjectSeedsJoinAtTheFineStageWithTheirWindows) {
+  auto data = MovingBall();
+  ASSERT_NE(data, nullptr);
+  TrainerOptions options;
+  options.config = FastObjectsConfig();
+  options.stages = kStage1;
+  auto backend = MakeCpuBackend();
+  auto trained = Train(*data, *backend, options);
+  ASSERT_TRUE(trained.ok()) << trained.status().ToString();
+  const auto added = std::find_if(trained->events.begin(), trained->events.end(),
+                                  [](const std::string& e) { return e.find("fast-object seeds") != std::string::npos; });
+  ASSERT_NE(added, trained->events.end());
+  const Gaussians& g = trained->asset.gaussians;
+  ASSERT_EQ(g.time_windows.size(), 2 * g.size());
+  size_t local = 0;
+  for (size_t i = 0; i < g.size(); ++i) {
+    if (g.time_windows[2 * i + 1] == 0) continue;
+    ++local;
+    EXPECT_NEAR(g.time_windows[2 * i + 1], 1.0 / (0.5 / 3.0), 1e-3);  // 4 timesteps over [0, 1]
+    const double step = g.time_windows[2 * i] * 3.0;
+    EXPECT_NEAR(step, std::round(step), 1e-5);
+  }
+  EXPECT_GT(local, 0u);
+  EXPECT_LT(local, g.size());
+  EXPECT_TRUE(ValidateAsset(trained->asset).ok());
+  auto bytes = EncodeAsset(trained->asset, {});
+  ASSERT_TRUE(bytes.ok()) << bytes.status().ToString();
+  auto back = DecodeAsset(bytes->data(), bytes->size());
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(back->gaussians.time_windows, g.time_windows);
+}
+
+TEST(TrainerSynthetic, ResumeAfterTheFastObjectSeedsReproducesTheUninterruptedRun) {
+  auto data = MovingBall();
+  ASSERT_NE(data, nullptr);
+  testing::TempDir dir;
+  TrainConfig config = FastObjectsConfig();
+  config.checkpoint_every = 5;
   ExpectResumeReproducesTheStraightRun(*data, config, 10, dir.path());
 }
 

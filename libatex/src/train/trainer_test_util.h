@@ -127,6 +127,7 @@ inline void ExpectResumeReproducesTheStraightRun(const Dataset& data, const Trai
   ASSERT_TRUE(resumed.ok()) << resumed.status().ToString();
   EXPECT_EQ(resumed->asset.gaussians.positions, straight->asset.gaussians.positions);
   EXPECT_EQ(resumed->asset.gaussians.sh, straight->asset.gaussians.sh);
+  EXPECT_EQ(resumed->asset.gaussians.time_windows, straight->asset.gaussians.time_windows);
   ASSERT_TRUE(resumed->asset.deformation && straight->asset.deformation);
   EXPECT_EQ(resumed->asset.deformation->trunk[0].weight, straight->asset.deformation->trunk[0].weight);
 }

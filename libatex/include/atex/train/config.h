@@ -101,6 +101,17 @@ struct InitMvsConfig {
   double max_relative_depth = 0.01;
 };
 
+// Fast-object seeds (atex/transient_hull.h): time-local Gaussians added at the start of the
+// fine stage, where the deformation field starts, from every timestep's visual hull.
+// [not in 4DGaussians] Multi-view datasets with masks only (config_check refuses it elsewhere).
+struct FastObjectsConfig {
+  bool enabled = false;
+  int points = 20000;          // seeds over all timesteps, at most
+  int hull_resolution = 96;    // voxels along the longest side of the foreground box
+  double max_presence = 0.25;  // a voxel is transient where the hull holds it in at most this share of timesteps
+  double window_frames = 0.5;  // window width (1/k) in frame intervals
+};
+
 struct Stage1Config {
   int coarse_iterations = 3000;
   int fine_iterations = 14000;
@@ -124,6 +135,7 @@ struct Stage1Config {
   InitVolumeConfig init_volume;
   InitMvsConfig init_mvs;
   std::string init_point_cloud;  // "file": PLY (x, y, z [, red/green/blue | f_dc_*]) or COLMAP points3D.txt/.bin
+  FastObjectsConfig fast_objects;
 };
 
 struct GrowthAblations {
