@@ -18,7 +18,7 @@
 #   stereo:  bench/configs/panoptic_stereo.json on all GPUs (out/stereo), no FPS (issue 20, third run;
 #            issue20.sh sheets times the models)
 #   temporal: bench/configs/panoptic_temporal.json on all GPUs (out/temporal), no FPS (issue 20, fourth
-#            run; ONLY=REGEX overrides the config's cells)
+#            run; ONLY=REGEX narrows the config's cells: run_matrix's --only applies on top of its "only")
 # With .oldsrc present, `start` also builds it into build-old in the background, for a later
 # bench/device/raster_ab.sh on the models these jobs train (AB_MODEL_DIR).
 # The two share GPUs through run_matrix's per-GPU lock files: one cell per GPU at a time.
