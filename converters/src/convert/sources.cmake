@@ -3,6 +3,7 @@
 # the 4DGaussians fixture in tests/fixtures/fourdgs.
 list(APPEND ATEX_CONVERTER_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/convert.cc
+  ${CMAKE_CURRENT_LIST_DIR}/convert_frames.cc
   ${CMAKE_CURRENT_LIST_DIR}/convert_names.cc
   ${CMAKE_CURRENT_LIST_DIR}/gaussian_checks.cc
   ${CMAKE_CURRENT_LIST_DIR}/world_turn.cc)

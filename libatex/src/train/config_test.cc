@@ -32,12 +32,14 @@ TEST(Config, UnknownKeysAndBadValuesAreErrors) {
   EXPECT_FALSE(ApplyOverride(config, "no_equals_sign").ok());
 }
 
-TEST(Config, PanopticRigsStartFromStereoWithCameraColours) {
+TEST(Config, PanopticRigsStartFromStereoWithCameraColoursAndFastObjectSeeds) {
   EXPECT_EQ(DefaultConfig("panoptic").stage1.init_method, "mvs+hull");
   EXPECT_TRUE(DefaultConfig("panoptic").camera_colour.enabled);
+  EXPECT_TRUE(DefaultConfig("panoptic").stage1.fast_objects.enabled);
   for (const char* kind : {"dnerf", "n3dv", ""}) {
     EXPECT_EQ(DefaultConfig(kind).stage1.init_method, "auto") << kind;
     EXPECT_FALSE(DefaultConfig(kind).camera_colour.enabled) << kind;
+    EXPECT_FALSE(DefaultConfig(kind).stage1.fast_objects.enabled) << kind;  // N3DV: no masks
   }
 }
 
