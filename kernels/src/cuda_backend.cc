@@ -60,7 +60,7 @@ Status CudaBackend::Init() {
   return Status::Ok();
 }
 
-StatusOr<Image> CudaBackend::Render(const Camera& camera, const train::RenderRequest& request) {
+Status CudaBackend::RenderInto(const Camera& camera, const train::RenderRequest& request, float* out) {
   train::StepRequest step;
   step.apply_deformation = request.apply_deformation && has_deformation_;
   step.active_sh_degree = std::min(request.active_sh_degree, sh_degree_);
@@ -70,13 +70,35 @@ StatusOr<Image> CudaBackend::Render(const Camera& camera, const train::RenderReq
   ATEX_RETURN_IF_ERROR(PrepareView(step, camera.time, textured, /*new_time=*/true, &inputs, &unused));
   for (int k = 0; k < 3; ++k) inputs.background[k] = request.background[k];
   const detail::CameraModel<float> cam = detail::MakeCameraModel<float>(camera, request.near_plane);
+  return render_->Forward(cam, inputs, out, nullptr, nullptr);
+}
+
+StatusOr<Image> CudaBackend::Render(const Camera& camera, const train::RenderRequest& request) {
   const size_t pixels = size_t(camera.width) * camera.height;
   ATEX_RETURN_IF_ERROR(image_.Resize(pixels * 3));
-  ATEX_RETURN_IF_ERROR(render_->Forward(cam, inputs, image_.data(), nullptr, nullptr));
+  ATEX_RETURN_IF_ERROR(RenderInto(camera, request, image_.data()));
   Image out(camera.width, camera.height, 3);
   ATEX_CUDA_RETURN_IF_ERROR(cudaMemcpyAsync(out.pixels.data(), image_.data(), pixels * 3 * sizeof(float),
                                             cudaMemcpyDeviceToHost, stream_));
   ATEX_CUDA_RETURN_IF_ERROR(cudaStreamSynchronize(stream_));
+  return out;
+}
+
+StatusOr<DeviceImage> CudaBackend::RenderToDevice(const Camera& camera, const train::RenderRequest& request) {
+  // A caller that still holds the last render keeps it: render into a new buffer then.
+  if (device_render_ == nullptr || device_render_.use_count() > 1) {
+    device_render_ = std::make_shared<DeviceBuffer<float>>();
+  }
+  const size_t pixels = size_t(camera.width) * camera.height;
+  ATEX_RETURN_IF_ERROR(device_render_->Resize(pixels * 3));
+  ATEX_RETURN_IF_ERROR(RenderInto(camera, request, device_render_->data()));
+  ATEX_CUDA_RETURN_IF_ERROR(cudaStreamSynchronize(stream_));
+  DeviceImage out;
+  out.owner = device_render_;
+  out.pixels = device_render_->data();
+  out.width = camera.width;
+  out.height = camera.height;
+  out.device = options_.device;
   return out;
 }
 
@@ -90,6 +112,13 @@ StatusOr<RenderTiming> TimeRender(train::Backend& backend, const Camera& camera,
   if (cuda == nullptr) return MakeError(StatusCode::kInvalidArgument, "TimeRender needs the CUDA backend");
   if (repeats < 1 || warmup < 0) return MakeError(StatusCode::kInvalidArgument, "TimeRender: bad repeat counts");
   return cuda->Time(camera, request, repeats, warmup);
+}
+
+StatusOr<DeviceImage> RenderOnDevice(train::Backend& backend, const Camera& camera,
+                                     const train::RenderRequest& request) {
+  auto* cuda = dynamic_cast<CudaBackend*>(&backend);
+  if (cuda == nullptr) return MakeError(StatusCode::kInvalidArgument, "RenderOnDevice needs the CUDA backend");
+  return cuda->RenderToDevice(camera, request);
 }
 
 StatusOr<std::unique_ptr<train::Backend>> MakeCudaBackend(const CudaBackendOptions& options) {

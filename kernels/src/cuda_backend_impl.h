@@ -87,6 +87,8 @@ class CudaBackend final : public Backend {
   Status ResizeTextures(const train::TextureResize& resize) override;
 
   StatusOr<Image> Render(const Camera& camera, const train::RenderRequest& request) override;
+  // See RenderOnDevice in cuda_backend.h.
+  StatusOr<DeviceImage> RenderToDevice(const Camera& camera, const train::RenderRequest& request);
 
   uint64_t PeakMemoryBytes() const override { return peak_memory_; }
 
@@ -132,6 +134,8 @@ class CudaBackend final : public Backend {
   Status PrepareView(const train::StepRequest& request, double time, bool textured, bool new_time,
                      RenderInputs* in, RenderGradients* grads);
 
+  // Renders `camera` into `out` ([H][W][3] on the device, sized by the caller); not synchronised.
+  Status RenderInto(const Camera& camera, const train::RenderRequest& request, float* out);
   RenderStats MakeStats(const train::StepRequest& request, const Camera& camera, float batch, bool textured);
 
   Status ZeroGrads();
@@ -185,6 +189,7 @@ class CudaBackend final : public Backend {
   DeviceBuffer<float> d_positions_, d_log_scales_, d_rotations_, d_opacity_, d_sh_;
   DeviceBuffer<float> g_positions_, g_log_scales_, g_rotations_, g_opacity_, g_sh_;
   DeviceBuffer<float> image_, image_grad_;
+  std::shared_ptr<DeviceBuffer<float>> device_render_;  // RenderToDevice's buffer, reused while no caller holds it
   DeviceBuffer<float> corrected_;  // [H][W][3] the render after the view's colour correction
   DeviceBuffer<float> scalars_;  // [0] photometric loss, [1] regulariser, [2 + k] squared error of view k
   DeviceBuffer<int> flag_;

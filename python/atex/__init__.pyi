@@ -55,6 +55,8 @@ class Gaussians:
     def opacity_logits(self) -> Float32Array: ...  # [N]
     @property
     def sh(self) -> Float32Array: ...              # [N, K, 3]
+    @property
+    def time_windows(self) -> Optional[Float32Array]: ...  # [N, 2] (centre, inverse width), or None
     def tensors(self) -> Dict[str, Tensor]: ...
 
 class TexturePool:

@@ -174,16 +174,41 @@ py::object Render(const AssetPtr& asset, const Camera& camera_in, py::object t, 
   if (!background.is_none()) request.background = background.cast<std::array<float, 3>>();
   if (!near_plane.is_none()) request.near_plane = near_plane.cast<float>();
   StatusOr<Image> image = Status(StatusCode::kInternal, "not rendered");
+#ifdef ATEX_HAVE_CUDA
+  // A tensor from the CUDA backend stays on the device (DLPack kDLCUDA): no copy to the host.
+  StatusOr<cuda::DeviceImage> on_device = Status(StatusCode::kInternal, "not rendered");
+  bool device_tensor = false;
+#endif
   {
     py::gil_scoped_release release;
     auto loaded = BackendFor(*asset, backend);
     if (loaded.ok()) {
       std::lock_guard<std::mutex> lock((*loaded)->mutex);
+#ifdef ATEX_HAVE_CUDA
+      device_tensor = output == "tensor" && (*loaded)->description.rfind("cuda", 0) == 0;
+      if (device_tensor) {
+        on_device = cuda::RenderOnDevice(*(*loaded)->backend, camera, request);
+      } else {
+        image = (*loaded)->backend->Render(camera, request);
+      }
+#else
       image = (*loaded)->backend->Render(camera, request);
+#endif
     } else {
       image = loaded.status();
     }
   }
+#ifdef ATEX_HAVE_CUDA
+  if (device_tensor) {
+    cuda::DeviceImage rendered = ValueOrThrow(std::move(on_device));
+    TensorData t;
+    t.data = const_cast<float*>(rendered.pixels);
+    t.shape = {rendered.height, rendered.width, 3};
+    t.device = {dlpack::kCuda, rendered.device};
+    t.owner = std::move(rendered.owner);
+    return MakeTensor(std::move(t));
+  }
+#endif
   return ImageToTensor(ValueOrThrow(std::move(image)), output == "tensor");
 }
 
@@ -226,7 +251,9 @@ void RegisterRender(py::module_& m) {
         py::arg("background") = py::none(), py::arg("near_plane") = py::none(), py::arg("output") = "numpy",
         "Renders `asset` seen by `camera` at scene time t (default: camera.time): the deformation, the textures,\n"
         "the full SH degree and the asset's background, as `atex render` does. Returns [H, W, 3] float32 RGB\n"
-        "(values as rendered, not clamped): a numpy array, or with output='tensor' an atex.Tensor (DLPack).\n\n"
+        "(values as rendered, not clamped): a numpy array, or with output='tensor' an atex.Tensor (DLPack):\n"
+        "in host memory from the CPU backend, in device memory from the CUDA one (no copy to the host;\n"
+        "torch.from_dlpack gives a CUDA tensor on the same memory).\n\n"
         "backend: 'auto' (CUDA when this build has it and a device is present, else the CPU reference),\n"
         "'cuda' or 'cpu'. The asset is loaded into the backend once and kept with the asset, so repeated\n"
         "renders of one asset pay only for the render. Runs without the GIL.");

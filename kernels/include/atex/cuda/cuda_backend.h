@@ -40,4 +40,20 @@ struct RenderTiming {
 StatusOr<RenderTiming> TimeRender(train::Backend& backend, const Camera& camera, const train::RenderRequest& request,
                                   int repeats = 100, int warmup = 10);
 
+// A render left in device memory, for consumers on the same GPU (DLPack: PyTorch, CuPy):
+// `pixels` is [height][width][3] float32 RGB (unclamped, as Backend::Render) on CUDA device
+// `device`, valid while `owner` lives (owner's destructor frees it, on any thread). The
+// render is complete when RenderOnDevice returns (the backend's stream is synchronised),
+// so a consumer on another stream may read it at once. The backend reuses one buffer for
+// its renders while no caller holds it, so a caller that drops each render before asking
+// for the next pays no allocation. `backend` must come from MakeCudaBackend
+// (kInvalidArgument otherwise); render errors as Backend::Render.
+struct DeviceImage {
+  std::shared_ptr<const void> owner;
+  const float* pixels = nullptr;
+  int width = 0, height = 0, device = 0;
+};
+StatusOr<DeviceImage> RenderOnDevice(train::Backend& backend, const Camera& camera,
+                                     const train::RenderRequest& request);
+
 }  // namespace atex::cuda
