@@ -30,6 +30,7 @@ build_old() {  # JOBS
 # report DIR/stage1.train.json), trained on GPU unless DIR has it already.
 train_short_stage1() {  # DIR GPU
   [ -f "$1/stage1.atex" ] && return 0
+  mkdir -p "$1"
   CUDA_VISIBLE_DEVICES=$2 "$atex" train --data "$bb" --stage 1 --out "$1/stage1.atex" --json \
     --set stage1.fine_iterations=6000 > "$1/stage1.train.json" 2> "$1/stage1.log"
 }

@@ -108,13 +108,9 @@ StatusOr<train::StepResult> CudaBackend::Step(const train::StepRequest& request,
   ATEX_RETURN_IF_ERROR(scalars_.Download(&scalars, stream_));
   std::vector<int> flag;
   ATEX_RETURN_IF_ERROR(flag_.Download(&flag, stream_));
-  if (world > 1) {
-    // The loss over all ranks' views (a NaN on one rank reaches all of them). The flag needs no
-    // sum: it was raised on the summed gradients, the same on every rank.
-    double photometric = scalars[0];
-    ATEX_RETURN_IF_ERROR(comm_->AllReduceSum(&photometric, 1));
-    scalars[0] = static_cast<float>(photometric);
-  }
+  // With several ranks scalars[0] is already the loss over all ranks' views (ReduceGradients summed
+  // it with the gradients; a NaN on one rank reaches all of them). The flag needs no sum: it was
+  // raised on the summed gradients, the same on every rank.
   result.photometric_loss = scalars[0];
   result.loss = scalars[0] + scalars[1];
   for (size_t k = 0; k < views.size(); ++k) {
@@ -253,6 +249,9 @@ Status CudaBackend::ReduceGradients(const train::StepRequest& request, bool text
     buffers.push_back({grid_.grad.data(), grid_.grad.size()});
     buffers.push_back({mlp_.grad.data(), mlp_.grad.size()});
   }
+  // The photometric loss (scalars_[0]) rides in the same grouped all-reduce: summing it on the host
+  // instead cost a second collective and a host wait per step (BENCHMARKS.md, issue 25).
+  buffers.push_back({scalars_.data(), 1});
   return comm_->AllReduceSumDevice(buffers, stream_);
 }
 
