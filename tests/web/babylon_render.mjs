@@ -16,113 +16,33 @@
 //   upright   the bundled lego sample (Blender Z-up world): the up direction of its dataset's
 //             cameras, carried through the splat mesh's world matrix (our node rotation and the
 //             loader's handedness root), must point up (+y) in Babylon's world
-// Side-by-side pictures (browser left, libatex right) are written as *_browser_vs_atex.png.
+// Side-by-side pictures (browser left, libatex right) are written as *_browser_vs_atex.png, the
+// browser's picture alone as *_browser.png.
 // Usage: node babylon_render.mjs FIXTURE_DIR
 import fs from 'node:fs';
-import os from 'node:os';
 import path from 'node:path';
-import { check, finish, missing, readManifest } from './common.mjs';
+import { compareInPage, newWatchedPage, openBrowser } from './browser.mjs';
+import { check, finish, readManifest } from './common.mjs';
 import { startServer } from './serve.mjs';
 
 const dir = path.resolve(process.argv[2] || '.');
 const manifest = readManifest(dir);
-const chromiumPath = process.env.ATEX_CHROMIUM || '/usr/bin/chromium';
-if (!fs.existsSync(chromiumPath)) missing(`${chromiumPath} is missing (apt-get install chromium)`);
-let chromium;
-try {
-  ({ chromium } = await import('playwright-core'));
-} catch {
-  missing('npm package playwright-core is missing: run tests/web/install.sh');
-}
 if (!manifest.garden && process.env.ATEX_REQUIRE_DATA === '1') {
   check(false, `real data for the garden scene is missing (${manifest.garden_missing})`);
 }
 
-// Runs in the page: compares the Babylon canvas with the reference PNG.
-async function compareInPage(referenceUrl) {
-  const gl = window.atexView.canvas;
-  const w = gl.width, h = gl.height;
-  const ref = await createImageBitmap(await (await fetch(referenceUrl)).blob());
-  if (ref.width !== w || ref.height !== h) throw new Error(`canvas ${w}x${h} vs reference ${ref.width}x${ref.height}`);
-  const canvas = new OffscreenCanvas(2 * w, h);
-  const g = canvas.getContext('2d', { willReadFrequently: true });
-  g.drawImage(gl, 0, 0);
-  g.drawImage(ref, w, 0);
-  const a = g.getImageData(0, 0, w, h).data;  // Babylon
-  const b = g.getImageData(w, 0, w, h).data;  // reference
-  const fg = (p, i) => Math.max(p[i], p[i + 1], p[i + 2]) > 25;
-  const cls = (p, i) => (p[i] >= p[i + 1] && p[i] >= p[i + 2] ? 0 : p[i + 1] >= p[i + 2] ? 1 : 2);
-  const iou = (flipA) => {
-    const inter = [0, 0, 0, 0], union = [0, 0, 0, 0];
-    for (let y = 0; y < h; ++y) {
-      for (let x = 0; x < w; ++x) {
-        const ia = ((flipA ? h - 1 - y : y) * w + x) * 4, ib = (y * w + x) * 4;
-        const fa = fg(a, ia), fb = fg(b, ib);
-        if (fa || fb) union[3]++;
-        if (fa && fb) inter[3]++;
-        for (let c = 0; c < 3; ++c) {
-          const ca = fa && cls(a, ia) === c, cb = fb && cls(b, ib) === c;
-          if (ca || cb) union[c]++;
-          if (ca && cb) inter[c]++;
-        }
-      }
-    }
-    return inter.map((v, k) => (union[k] ? v / union[k] : 1));
-  };
-  let se = 0, fgA = 0, fgB = 0;
-  for (let i = 0; i < a.length; i += 4) {
-    for (let c = 0; c < 3; ++c) se += ((a[i + c] - b[i + c]) / 255) ** 2;
-    fgA += fg(a, i) ? 1 : 0;
-    fgB += fg(b, i) ? 1 : 0;
-  }
-  const mse = se / (w * h * 3);
-  const blob = await canvas.convertToBlob({ type: 'image/png' });
-  const bytes = new Uint8Array(await blob.arrayBuffer());
-  let binary = '';
-  for (let i = 0; i < bytes.length; i += 0x8000) binary += String.fromCharCode(...bytes.subarray(i, i + 0x8000));
-  const [r, gr, bl, all] = iou(false);
-  return {
-    width: w, height: h,
-    iou: all, iouRed: r, iouGreen: gr, iouBlue: bl,
-    iouUpsideDown: iou(true)[3],
-    psnr: mse > 0 ? -10 * Math.log10(mse) : 99,
-    foregroundBabylon: fgA / (w * h), foregroundReference: fgB / (w * h),
-    sideBySidePng: btoa(binary),
-  };
-}
-
 const server = await startServer({ data: dir });
-const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'atex-chromium-'));
 const started = Date.now();
-let context;
+const browser = await openBrowser();
+const { context, offline } = browser;
 try {
-  context = await chromium.launchPersistentContext(profile, {
-    executablePath: chromiumPath,
-    headless: true,
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking', '--disable-component-update',
-           '--disable-sync', '--no-first-run', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
-    deviceScaleFactor: 1,
-    viewport: { width: 800, height: 600 },
-  });
-  const offline = [];
-  await context.route('**/*', (route) => {
-    const url = new URL(route.request().url());
-    if (url.hostname === '127.0.0.1' || url.protocol === 'data:' || url.protocol === 'blob:') return route.continue();
-    offline.push(url.href);
-    return route.abort();
-  });
   const scenes = [['letter_f', manifest.letter_f], ['letter_f_meshopt', manifest.letter_f_meshopt]];
   if (manifest.garden) scenes.push(['garden', manifest.garden]);
   if (manifest.player_lego) scenes.push(['player_lego', manifest.player_lego]);
   scenes.push(['splatv_player', manifest.splatv_view]);
   for (const [name, scene] of scenes) {
-    const page = await context.newPage();
     const camera = JSON.parse(fs.readFileSync(path.join(dir, scene.camera), 'utf8'));
-    await page.setViewportSize({ width: camera.width, height: camera.height });
-    const errors = [];
-    page.on('pageerror', (e) => errors.push(e.message));
-    page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-    page.on('response', (r) => { if (r.status() >= 400) errors.push(`HTTP ${r.status()} ${r.url()}`); });
+    const { page, errors } = await newWatchedPage(context, camera.width, camera.height);
     const t0 = Date.now();
     await page.goto(scene.splatv ? `${server.url}/splatv.html?src=/data/${scene.splatv}&t=${scene.time}&fixed=1`
                                  : `${server.url}/index.html?src=/data/${scene.glb}&camera=/data/${scene.camera}`);
@@ -136,7 +56,9 @@ try {
     }
     const stats = await page.evaluate(compareInPage, `/data/${scene.reference}`);
     fs.writeFileSync(path.join(dir, `${name}_browser_vs_atex.png`), Buffer.from(stats.sideBySidePng, 'base64'));
+    fs.writeFileSync(path.join(dir, `${name}_browser.png`), Buffer.from(stats.playerPng, 'base64'));
     delete stats.sideBySidePng;
+    delete stats.playerPng;
     if (scene.truth) {
       // A trained asset: also against our textured render and the ground truth (reported).
       stats.psnrVsAtexTextured = (await page.evaluate(compareInPage, `/data/${scene.atex}`)).psnr;
@@ -204,9 +126,8 @@ try {
   }
   check(offline.length === 0, `no request left 127.0.0.1 (${offline.slice(0, 3).join(', ')})`);
 } finally {
-  if (context) await context.close();
+  await browser.close();
   await server.close();
-  fs.rmSync(profile, { recursive: true, force: true });
 }
 console.log(`browser checks took ${((Date.now() - started) / 1000).toFixed(1)} s`);
 finish();

@@ -1,7 +1,9 @@
 // A small static HTTP server on 127.0.0.1 for the sample viewer and the browser test.
 //   /                -> samples/web            (the viewer pages)
-//   /node_modules/   -> tests/web/node_modules (Babylon.js, meshoptimizer's decoder)
-//   /data/           -> a folder of .glb / .splatv files (--data DIR)
+//   /node_modules/   -> tests/web/node_modules (Babylon.js, meshoptimizer's decoder,
+//                       PlayCanvas, three.js, Spark)
+//   /players/        -> tests/web/players      (the PlayCanvas and three.js + Spark pages)
+//   /data/           -> a folder of .glb / .splatv / .ply / .spz files (--data DIR)
 // As a program:  node tests/web/serve.mjs --data out_dir [--port 8080]
 // then open http://127.0.0.1:8080/?src=/data/scene.glb  or  /splatv.html?src=/data/scene.splatv
 import fs from 'node:fs';
@@ -23,6 +25,8 @@ const types = {
   '.gltf': 'model/gltf+json',
   '.bin': 'application/octet-stream',
   '.splatv': 'application/octet-stream',
+  '.ply': 'application/octet-stream',
+  '.spz': 'application/octet-stream',
   '.wasm': 'application/wasm',
   '.css': 'text/css',
 };
@@ -31,6 +35,7 @@ const types = {
 export function startServer({ data, port = 0, log = false } = {}) {
   const mounts = [
     ['/node_modules/', path.join(here, 'node_modules')],
+    ['/players/', path.join(here, 'players')],
     ['/data/', data ? path.resolve(data) : null],
     ['/', path.join(sourceDir, 'samples', 'web')],
   ];
@@ -83,4 +88,6 @@ if (process.argv[1] && path.resolve(process.argv[1]) === fileURLToPath(import.me
   console.log(`serving samples/web at ${url}/  (files of --data under ${url}/data/)`);
   console.log(`  glTF in Babylon.js: ${url}/?src=/data/<file>.glb`);
   console.log(`  splaTV file:        ${url}/splatv.html?src=/data/<file>.splatv`);
+  console.log(`  PlayCanvas:         ${url}/players/playcanvas.html?src=/data/<file>.glb|.ply&camera=/data/<camera>.json`);
+  console.log(`  three.js + Spark:   ${url}/players/spark.html?src=/data/<file>.ply|.spz&camera=/data/<camera>.json`);
 }

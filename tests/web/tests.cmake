@@ -5,6 +5,10 @@
 #                       the lego sample's cameras' up direction must come out as +y in
 #                       Babylon's world (the golden "upright" check)
 #   web_splatv_reader   our .splatv read by a re-implementation of splaTV's reader and shader
+#   web_playcanvas_render  our .glb and .ply in the unmodified PlayCanvas engine (npm playcanvas)
+#   web_spark_render    our .ply and .spz in three.js with Spark (npm three, @sparkjsdev/spark);
+#                       both player checks (player_render.mjs, pages in players/): the "F" upright,
+#                       not mirrored, per-colour IoU; the lego sample upright, PSNR against our render
 #   web_cli_export      `atex export` / `atex import` end to end (no node needed)
 #   web_view_cli        `atex view` on the command line (no node needed)
 #   web_view_page       the page of `atex view` in headless Chromium from file:// (view_page.mjs)
@@ -27,6 +31,15 @@ set_tests_properties(web_cli_export PROPERTIES FIXTURES_REQUIRED atex_web TIMEOU
 foreach(check gltf_validator babylon_render splatv_reader)
   add_test(NAME web_${check} COMMAND bash ${ATEX_WEB_DIR}/run_node.sh ${ATEX_WEB_DIR}/${check}.mjs ${ATEX_WEB_OUT})
   set_tests_properties(web_${check} PROPERTIES FIXTURES_REQUIRED atex_web SKIP_RETURN_CODE 77 TIMEOUT 180
+    LABELS web ENVIRONMENT "ATEX_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
+endforeach()
+
+# Third-party players in headless Chromium (player_render.mjs PLAYER FIXTURE_DIR); Spark is slow
+# on software WebGL2 (about a minute per lego picture on the CPU machine).
+foreach(player playcanvas spark)
+  add_test(NAME web_${player}_render
+    COMMAND bash ${ATEX_WEB_DIR}/run_node.sh ${ATEX_WEB_DIR}/player_render.mjs ${player} ${ATEX_WEB_OUT})
+  set_tests_properties(web_${player}_render PROPERTIES FIXTURES_REQUIRED atex_web SKIP_RETURN_CODE 77 TIMEOUT 600
     LABELS web ENVIRONMENT "ATEX_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
 endforeach()
 

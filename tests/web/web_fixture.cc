@@ -1,13 +1,16 @@
 // Writes the files the third-party checks of tests/web read:
 //   validator/*.glb|.gltf   exports in every flavour, for the Khronos glTF-Validator
 //   letter_f.*              an asymmetric static scene ("F", red/green/blue) with a camera
-//                           given in glTF terms and our reference render of it
+//                           given in glTF terms and our reference render of it; also as
+//                           .ply and .spz written as `atex convert` writes them (PlayCanvas, Spark)
 //   garden.*                gsplat's real COLMAP points of Mip-NeRF 360 "garden" as small
 //                           Gaussians, a real camera, and our reference render
 //   motion.splatv + motion_reference.json   baked motion and the deformation it stands for
 //   upright_lego.glb        the bundled lego sample (D-NeRF, Blender Z-up) exported with its
 //                           recorded up axis, and the up direction of the dataset's cameras
 //                           (from the cameras, not the metadata) that a reader must show as up
+//   player_lego.*           the lego sample at a test view's time as .glb, .ply and .spz, the
+//                           view's camera and three references (our render, untextured, truth)
 // Usage: atex_web_fixture OUT_DIR   (real data from $ATEX_DATA_DIR or the configured default)
 #include <algorithm>
 #include <cmath>
@@ -18,6 +21,7 @@
 #include <string>
 
 #include "atex/container.h"
+#include "atex/converters/convert.h"
 #include "atex/converters/gltf.h"
 #include "atex/converters/splatv.h"
 #include "atex/dataset.h"
@@ -54,6 +58,14 @@ atex::Status RenderReference(const atex::Asset& asset, const atex::Camera& camer
   atex::Image image = atex::RenderedImage(*out);
   for (float& v : image.pixels) v = std::clamp(v, 0.0f, 1.0f);
   return atex::WriteImage(png.string(), image);
+}
+
+// `atex convert` options for the players' .ply and .spz files: SPZ version 3 (gzip), which
+// Spark reads (it refuses version 4's zstd streams).
+atex::ConvertOptions SpzV3() {
+  atex::ConvertOptions options;
+  options.spz_version = 3;
+  return options;
 }
 
 json CameraJson(const atex::Camera& c) {
@@ -220,6 +232,11 @@ int main(int argc, char** argv) {
     atex::GltfExportOptions meshopt;
     meshopt.meshopt = true, meshopt.meshopt_float_bits = 12, meshopt.raw_parameters = false;
     if (s.ok()) s = atex::WriteGltfFile((out / "letter_f_meshopt.glb").string(), f, meshopt);
+    // The same scene as `atex convert letter_f.atex letter_f.ply` (and `.spz --spz-version 3`:
+    // Spark 2.2 reads the gzip-framed SPZ v2/v3, not v4) writes it.
+    for (const char* name : {"letter_f.ply", "letter_f.spz"}) {
+      if (s.ok()) s = atex::WriteAssetAs((out / name).string(), f, atex::FileFormat::kUnknown, SpzV3());
+    }
     if (s.ok()) s = RenderReference(f, camera, out / "letter_f_reference.png");
     if (!s.ok()) return Fail("letter F", s);
     json cam = CameraJson(camera);
@@ -227,7 +244,9 @@ int main(int argc, char** argv) {
     cam["pose"] = {{"gltf", {{"position", {0, 0, 3}}, {"target", {0, 0, 0}}, {"up", {0, 1, 0}}}}};
     s = WriteText(out / "letter_f_camera.json", cam.dump(2));
     if (!s.ok()) return Fail("letter F camera", s);
-    manifest["letter_f"] = {{"glb", "letter_f.glb"}, {"camera", "letter_f_camera.json"}, {"reference", "letter_f_reference.png"}};
+    manifest["letter_f"] = {{"glb", "letter_f.glb"}, {"ply", "letter_f.ply"}, {"spz", "letter_f.spz"},
+                            {"camera", "letter_f_camera.json"}, {"reference", "letter_f_reference.png"},
+                            {"gaussians", f.gaussians.size()}};
     manifest["letter_f_meshopt"] = {{"glb", "letter_f_meshopt.glb"}, {"camera", "letter_f_camera.json"},
                                     {"reference", "letter_f_reference.png"}};
     manifest["validator"].push_back("letter_f_meshopt.glb");
@@ -342,6 +361,12 @@ int main(int argc, char** argv) {
     atex::GltfExportOptions options;
     options.time = view.camera.time;
     if (s.ok()) s = atex::WriteGltfFile((out / "player_lego.glb").string(), *sample, options);
+    // `atex convert --time T` to .ply and .spz v3 (the world turned to each format's up axis).
+    atex::ConvertOptions at_time = SpzV3();
+    at_time.time = view.camera.time;
+    for (const char* name : {"player_lego.ply", "player_lego.spz"}) {
+      if (s.ok()) s = atex::WriteAssetAs((out / name).string(), *sample, atex::FileFormat::kUnknown, at_time);
+    }
     if (s.ok()) s = RenderReference(baked, view.camera, out / "player_lego_atex.png");
     atex::Asset plain = baked;
     plain.textures.reset();
@@ -354,7 +379,8 @@ int main(int argc, char** argv) {
     cam["pose"] = {{"opencv_world_to_camera", view.camera.world_to_camera}, {"apply_node_rotation", true}};
     s = WriteText(out / "player_lego_camera.json", cam.dump(2));
     if (!s.ok()) return Fail("player lego camera", s);
-    manifest["player_lego"] = {{"glb", "player_lego.glb"}, {"camera", "player_lego_camera.json"},
+    manifest["player_lego"] = {{"glb", "player_lego.glb"}, {"ply", "player_lego.ply"}, {"spz", "player_lego.spz"},
+                               {"camera", "player_lego_camera.json"},
                                {"reference", "player_lego_untextured.png"}, {"atex", "player_lego_atex.png"},
                                {"truth", "player_lego_truth.png"}, {"time", view.camera.time},
                                {"gaussians", sample->gaussians.size()}};
