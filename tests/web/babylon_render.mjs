@@ -11,8 +11,10 @@
 //             the deformed scene rendered by libatex
 //   player_lego  the bundled lego sample (a trained, textured 4D asset) baked at the time of the
 //             dataset's first test view: PSNR against our render of its Gaussians without textures
-//             (what a KHR_gaussian_splatting player can show; >= 35 dB), and reported against our
-//             textured render and the ground truth
+//             (what a KHR_gaussian_splatting player can show; >= 20 dB with Babylon's default
+//             blur), and reported against our textured render and the ground truth
+//   player_lego_3dgs_kernel  the same with Babylon's blur set to 3DGS's (viewer.mjs ?kernel=1.2):
+//             >= 35 dB, the issue's target
 //   upright   the bundled lego sample (Blender Z-up world): the up direction of its dataset's
 //             cameras, carried through the splat mesh's world matrix (our node rotation and the
 //             loader's handedness root), must point up (+y) in Babylon's world
@@ -38,14 +40,19 @@ const { context, offline } = browser;
 try {
   const scenes = [['letter_f', manifest.letter_f], ['letter_f_meshopt', manifest.letter_f_meshopt]];
   if (manifest.garden) scenes.push(['garden', manifest.garden]);
-  if (manifest.player_lego) scenes.push(['player_lego', manifest.player_lego]);
+  if (manifest.player_lego) {
+    scenes.push(['player_lego', manifest.player_lego]);
+    // The same with Babylon's screen-space blur set to 3DGS's (viewer.mjs, ?kernel=).
+    scenes.push(['player_lego_3dgs_kernel', { ...manifest.player_lego, kernel: 1.2 }]);
+  }
   scenes.push(['splatv_player', manifest.splatv_view]);
   for (const [name, scene] of scenes) {
     const camera = JSON.parse(fs.readFileSync(path.join(dir, scene.camera), 'utf8'));
     const { page, errors } = await newWatchedPage(context, camera.width, camera.height);
     const t0 = Date.now();
     await page.goto(scene.splatv ? `${server.url}/splatv.html?src=/data/${scene.splatv}&t=${scene.time}&fixed=1`
-                                 : `${server.url}/index.html?src=/data/${scene.glb}&camera=/data/${scene.camera}`);
+                                 : `${server.url}/index.html?src=/data/${scene.glb}&camera=/data/${scene.camera}` +
+                                   (scene.kernel ? `&kernel=${scene.kernel}` : ''));
     let info;
     try {
       await page.waitForFunction(() => window.atexView !== undefined, null, { timeout: 60000 });
@@ -78,11 +85,13 @@ try {
     check(info.splatMeshes === 1, `${name}: Babylon built ${info.splatMeshes} Gaussian splatting mesh (expected 1)`);
     check(/SwiftShader|ANGLE/i.test(info.renderer), `${name}: WebGL renderer "${info.renderer}"`);
     if (scene.truth) {
-      // Issue 21's target for the untextured content is 35 dB against our render of it; Babylon.js
-      // 9.28 reaches 22.0 dB on this 100x100 view (BENCHMARKS.md, interop: missed). These bounds
-      // guard what holds today: the geometry lands where ours does, and the picture is no worse.
+      // Issue 21's target for the untextured content is 35 dB against our render of it. With its
+      // default blur (0.3 px² added to splats of twice the glTF's scales: 0.075 px² in 3DGS's terms)
+      // Babylon.js 9.28 reaches 22.0 dB on this 100x100 view; with 3DGS's 0.3 px² (kernel=1.2) it must
+      // reach the target (BENCHMARKS.md, "A trained asset in Babylon.js").
+      const floor = scene.kernel ? 35 : 20;
       check(stats.iou >= 0.9, `${name}: foreground IoU ${stats.iou.toFixed(3)} >= 0.9`);
-      check(stats.psnr >= 20, `${name}: PSNR ${stats.psnr.toFixed(2)} dB against our untextured render >= 20 dB`);
+      check(stats.psnr >= floor, `${name}: PSNR ${stats.psnr.toFixed(2)} dB against our untextured render >= ${floor} dB`);
       check(stats.iouUpsideDown < stats.iou - 0.1, `${name}: the upside-down picture matches worse (IoU ${stats.iouUpsideDown.toFixed(3)})`);
     } else if (name.startsWith('letter_f')) {
       check(stats.iou >= 0.9, `${name}: foreground IoU ${stats.iou.toFixed(3)} >= 0.9`);
