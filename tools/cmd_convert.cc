@@ -151,7 +151,10 @@ atex::cli::Runner SetupConvert(CLI::App& app) {
   app.add_option("--to", a->to,
                  "Output format when the extension does not say it (with --frames: ply or spz, default ply)")
       ->check(CLI::IsMember({"ply", "spz", "atex", "exr", "drc"}, CLI::ignore_case));
-  app.add_option("--spz-version", a->spz_version, "SPZ version to write (default 4, the current one; 3 for readers that have no version 4 yet, e.g. three.js Spark 2.2)")->check(CLI::IsMember({3, 4}));
+  app.add_option("--spz-version", a->spz_version,
+                 "SPZ version to write (default 4, the current one; 3 for readers that have no version 4 yet, "
+                 "e.g. three.js Spark 2.2)")
+      ->check(CLI::IsMember({3, 4}));
   app.add_option("--spz-axes", a->spz_axes,
                  "opencv: convert SPZ's RUB axes to/from libatex's RDF world; stored: keep the file's axes")
       ->check(CLI::IsMember({"opencv", "stored"}));
