@@ -27,8 +27,9 @@ inline constexpr const char* kTexturesDroppedWarning =
     "textures dropped: .ply/.spz/.drc cannot hold them, so the output renders as plain 4DGS without the "
     "per-Gaussian texture detail";
 
-inline // `baked`: the deformation went into the output (per-frame export), not dropped.
-void NoteDropped(const Asset& asset, ConvertReport* report, bool baked = false) {
+inline  // `baked`: the deformation went into the output (per-frame export), not dropped.
+    void
+    NoteDropped(const Asset& asset, ConvertReport* report, bool baked = false) {
   if (report == nullptr) return;
   if (asset.textures) {
     report->dropped.push_back("textures");

@@ -71,8 +71,8 @@ Status WriteFrames(const std::string& folder, const Asset& asset, FileFormat for
   NoteDropped(asset, report, /*baked=*/true);
   if (report) {
     if (!asset.deformation) {
-      report->notes.push_back(StrCat("static asset: every one of the ", times.size(),
-                                     " frames holds the canonical Gaussians"));
+      report->notes.push_back(
+          StrCat("static asset: every one of the ", times.size(), " frames holds the canonical Gaussians"));
     } else {
       report->notes.push_back(StrCat("deformation (every enabled head) baked into ", times.size(), " frames"));
       const Metadata& m = asset.metadata;
@@ -117,8 +117,8 @@ Status WriteFrames(const std::string& folder, const Asset& asset, FileFormat for
     std::vector<uint8_t> frame_bytes;
     if (asset.deformation) {
       const auto convert_start = Clock::now();
-      Status deformed_ok = DeformForward(*asset.deformation, asset.gaussians, times[i], &deformed,
-                                         static_cast<DeformCache*>(nullptr));
+      Status deformed_ok =
+          DeformForward(*asset.deformation, asset.gaussians, times[i], &deformed, static_cast<DeformCache*>(nullptr));
       if (!deformed_ok.ok()) return deformed_ok.WithContext(StrCat("frame ", i, " (time ", times[i], ")"));
       if (report) report->convert_seconds += SecondsSince(convert_start);
       const auto encode_start = Clock::now();
@@ -138,8 +138,8 @@ Status WriteFrames(const std::string& folder, const Asset& asset, FileFormat for
     }
     entries.push_back({{"file", name}, {"time", times[i]}});
     if (options.frame_progress && !options.frame_progress(i + 1, times.size())) {
-      return MakeError(StatusCode::kCancelled, "per-frame export cancelled after frame ", i + 1, " of ",
-                       times.size(), " (frames.json not written)");
+      return MakeError(StatusCode::kCancelled, "per-frame export cancelled after frame ", i + 1, " of ", times.size(),
+                       " (frames.json not written)");
     }
   }
 

@@ -6,8 +6,8 @@
 namespace atex::cuda {
 namespace {
 
-__global__ void ApplyTimeWindowsKernel(const float* __restrict__ windows, float* __restrict__ opacity_logits,
-                                       size_t n, float time) {
+__global__ void ApplyTimeWindowsKernel(const float* __restrict__ windows, float* __restrict__ opacity_logits, size_t n,
+                                       float time) {
   constexpr float kCap = static_cast<float>(kMaxTimeWindowPenalty);
   for (size_t i = blockIdx.x * size_t(blockDim.x) + threadIdx.x; i < n; i += size_t(gridDim.x) * blockDim.x) {
     const float q = windows[2 * i + 1] * (time - windows[2 * i]);

@@ -29,18 +29,18 @@
 namespace atex {
 
 struct TransientSeedOptions {
-  int points = 20000;           // seeds over all timesteps, at most
-  int hull_resolution = 96;     // voxels along the longest side of the foreground box
-  double max_presence = 0.25;   // share of timesteps, (0, 1)
-  double window_frames = 0.5;   // window width 1/k in frame intervals, > 0
+  int points = 20000;          // seeds over all timesteps, at most
+  int hull_resolution = 96;    // voxels along the longest side of the foreground box
+  double max_presence = 0.25;  // share of timesteps, (0, 1)
+  double window_frames = 0.5;  // window width 1/k in frame intervals, > 0
 };
 
 struct TransientSeedReport {
-  int timesteps = 0;              // timesteps with enough masked training views
-  size_t voxels = 0;              // of the fine grid
-  size_t transient = 0;           // (timestep, voxel) pairs that passed the rule
-  size_t seeds = 0;               // Gaussians returned
-  double frame_interval = 0;      // median time between consecutive timesteps
+  int timesteps = 0;          // timesteps with enough masked training views
+  size_t voxels = 0;          // of the fine grid
+  size_t transient = 0;       // (timestep, voxel) pairs that passed the rule
+  size_t seeds = 0;           // Gaussians returned
+  double frame_interval = 0;  // median time between consecutive timesteps
   std::array<float, 3> box_min{0, 0, 0}, box_max{0, 0, 0};
 };
 
@@ -50,7 +50,7 @@ struct TransientSeedReport {
 // time_windows set (possibly none: a scene without transient foreground gets an empty set).
 // kInvalidArgument for options out of range or a dataset without timesteps; kNotFound when
 // fewer than two timesteps have init.min_views masked training views.
-StatusOr<Gaussians> TransientSeeds(const Dataset& dataset, const InitOptions& init,
-                                   const TransientSeedOptions& options, TransientSeedReport* report = nullptr);
+StatusOr<Gaussians> TransientSeeds(const Dataset& dataset, const InitOptions& init, const TransientSeedOptions& options,
+                                   TransientSeedReport* report = nullptr);
 
 }  // namespace atex

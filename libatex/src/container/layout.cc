@@ -177,7 +177,8 @@ std::vector<uint8_t> AssembleContainer(const std::vector<OutputChunk>& chunks) {
   std::memcpy(out.data(), kMagic.data(), kMagic.size());
   StoreLE<uint16_t>(out.data() + kHeaderMajor, kVersionMajor);
   // The lowest minor version that has every chunk type used (format_spec/atex.md §10): GTWN came with 1.1.
-  const bool uses_1_1 = std::any_of(chunks.begin(), chunks.end(), [](const OutputChunk& c) { return c.type == "GTWN"; });
+  const bool uses_1_1 =
+      std::any_of(chunks.begin(), chunks.end(), [](const OutputChunk& c) { return c.type == "GTWN"; });
   StoreLE<uint16_t>(out.data() + kHeaderMinor, uint16_t(uses_1_1 ? 1 : 0));
   StoreLE<uint32_t>(out.data() + kHeaderFlags, 0);
   StoreLE<uint64_t>(out.data() + kHeaderFileSize, file_size);

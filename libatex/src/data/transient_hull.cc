@@ -36,8 +36,8 @@ struct Timestep {
 
 }  // namespace
 
-StatusOr<Gaussians> TransientSeeds(const Dataset& dataset, const InitOptions& init,
-                                   const TransientSeedOptions& options, TransientSeedReport* report) {
+StatusOr<Gaussians> TransientSeeds(const Dataset& dataset, const InitOptions& init, const TransientSeedOptions& options,
+                                   TransientSeedReport* report) {
   ATEX_RETURN_IF_ERROR(ValidateOptions(init, options));
   TransientSeedReport local;
   TransientSeedReport& rep = report ? *report : local;

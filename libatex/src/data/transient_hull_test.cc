@@ -173,10 +173,9 @@ TEST(TransientSeeds, RefuseDataWithoutMasksOrTimestepsAndBadOptions) {
   EXPECT_EQ(TransientSeeds(**unmasked, InitOptions{}, SmallOptions()).status().code(), StatusCode::kNotFound);
   auto scene = BallScene();
   ASSERT_TRUE(scene.ok());
-  for (auto edit : {+[](TransientSeedOptions& o) { o.max_presence = 1.0; },
-                    +[](TransientSeedOptions& o) { o.window_frames = 0; },
-                    +[](TransientSeedOptions& o) { o.points = -1; },
-                    +[](TransientSeedOptions& o) { o.hull_resolution = 2; }}) {
+  for (auto edit :
+       {+[](TransientSeedOptions& o) { o.max_presence = 1.0; }, +[](TransientSeedOptions& o) { o.window_frames = 0; },
+        +[](TransientSeedOptions& o) { o.points = -1; }, +[](TransientSeedOptions& o) { o.hull_resolution = 2; }}) {
     TransientSeedOptions o = SmallOptions();
     edit(o);
     EXPECT_EQ(TransientSeeds(**scene, InitOptions{}, o).status().code(), StatusCode::kInvalidArgument);

@@ -86,7 +86,7 @@ struct Grid {
 };
 
 inline Grid Carve(const std::array<double, 3>& lo, const std::array<double, 3>& hi, int resolution,
-           const std::vector<CameraImages>& cams, const InitOptions& options) {
+                  const std::vector<CameraImages>& cams, const InitOptions& options) {
   Grid grid;
   grid.lo = lo;
   const double longest = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});

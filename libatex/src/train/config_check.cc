@@ -204,7 +204,8 @@ Status CrossCheckConfig(const TrainConfig& config, const Dataset& dataset, int s
   if (!SameColour(config.background, dataset.background())) {
     return MakeError(StatusCode::kInvalidArgument, "background ", Colour(config.background),
                      " differs from the background the dataset's frames are composited on ",
-                     Colour(dataset.background()), " (DatasetOptions::background): open the dataset with the "
+                     Colour(dataset.background()),
+                     " (DatasetOptions::background): open the dataset with the "
                      "training background");
   }
   if (!dataset.background_is_default() && !SameColour(config.background, DefaultBackground(dataset.kind())) &&
@@ -231,8 +232,8 @@ Status CrossCheckConfig(const TrainConfig& config, const Dataset& dataset, int s
   if (stages & kStage1) {
     const Stage1Config& s1 = config.stage1;
     if (s1.densify.enabled && s1.densify.until_step <= s1.densify.from_step && s1.fine_iterations > 0) {
-      warn(StrCat("stage1.densify.until_step=", s1.densify.until_step, " <= stage1.densify.from_step=",
-                  s1.densify.from_step, ": densification never runs"));
+      warn(StrCat("stage1.densify.until_step=", s1.densify.until_step,
+                  " <= stage1.densify.from_step=", s1.densify.from_step, ": densification never runs"));
     }
     if (s1.densify.enabled && s1.densify.from_step >= s1.coarse_iterations + s1.fine_iterations &&
         s1.coarse_iterations + s1.fine_iterations > 0) {
@@ -244,11 +245,12 @@ Status CrossCheckConfig(const TrainConfig& config, const Dataset& dataset, int s
     if (s1.fast_objects.enabled && (!dataset.has_masks() || !timed_views)) {
       return MakeError(StatusCode::kInvalidArgument,
                        "stage1.fast_objects.enabled needs a multi-view dataset with timesteps and foreground masks "
-                       "(its seeds come from every timestep's visual hull); '", dataset.name(), "' has ",
-                       timed_views ? "no masks" : "no timesteps");
+                       "(its seeds come from every timestep's visual hull); '",
+                       dataset.name(), "' has ", timed_views ? "no masks" : "no timesteps");
     }
     if (s1.fast_objects.enabled && s1.fine_iterations == 0) {
-      warn("stage1.fast_objects.enabled with stage1.fine_iterations=0: the seeds are added where the fine stage starts");
+      warn(
+          "stage1.fast_objects.enabled with stage1.fine_iterations=0: the seeds are added where the fine stage starts");
     }
   }
   if (stages & kStage2) {

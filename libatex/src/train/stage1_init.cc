@@ -134,7 +134,9 @@ StatusOr<std::string> AddFastObjectSeeds(const Dataset& data, const TrainConfig&
   }
   const size_t old_count = g.size(), added = seeds.size();
   if (!g.has_time_windows()) g.time_windows.assign(old_count * 2, 0.0f);
-  auto append = [](std::vector<float>& to, const std::vector<float>& from) { to.insert(to.end(), from.begin(), from.end()); };
+  auto append = [](std::vector<float>& to, const std::vector<float>& from) {
+    to.insert(to.end(), from.begin(), from.end());
+  };
   append(g.positions, seeds.positions);
   append(g.rotations, seeds.rotations);
   append(g.log_scales, seeds.log_scales);

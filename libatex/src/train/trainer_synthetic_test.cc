@@ -89,8 +89,9 @@ TEST(TrainerSynthetic, FastObjectSeedsJoinAtTheFineStageWithTheirWindows) {
   auto backend = MakeCpuBackend();
   auto trained = Train(*data, *backend, options);
   ASSERT_TRUE(trained.ok()) << trained.status().ToString();
-  const auto added = std::find_if(trained->events.begin(), trained->events.end(),
-                                  [](const std::string& e) { return e.find("fast-object seeds") != std::string::npos; });
+  const auto added = std::find_if(trained->events.begin(), trained->events.end(), [](const std::string& e) {
+    return e.find("fast-object seeds") != std::string::npos;
+  });
   ASSERT_NE(added, trained->events.end());
   const Gaussians& g = trained->asset.gaussians;
   ASSERT_EQ(g.time_windows.size(), 2 * g.size());
