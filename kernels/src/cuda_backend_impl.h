@@ -65,7 +65,11 @@ class CudaBackend final : public Backend {
 
   Status Save(ModelState* state) override;
 
-  Status ReadGaussians(Gaussians* g) override { return DownloadGaussians(&Param::value, g); }
+  Status ReadGaussians(Gaussians* g) override {
+    ATEX_RETURN_IF_ERROR(DownloadGaussians(&Param::value, g));
+    g->time_windows.clear();  // as the CPU backend: the canonical Gaussians with their windows
+    return has_time_windows_ ? time_windows_.Download(&g->time_windows, stream_) : Status::Ok();
+  }
 
   // One of the per-Gaussian tensors of every group (values, gradients or an Adam moment),
   // shaped as Gaussians.

@@ -65,9 +65,7 @@ Status CudaBackend::Load(const ModelState& state) {
 }
 
 Status CudaBackend::Save(ModelState* state) {
-  ATEX_RETURN_IF_ERROR(DownloadGaussians(&Param::value, &state->gaussians));
-  state->gaussians.time_windows.clear();
-  if (has_time_windows_) ATEX_RETURN_IF_ERROR(time_windows_.Download(&state->gaussians.time_windows, stream_));
+  ATEX_RETURN_IF_ERROR(ReadGaussians(&state->gaussians));
   ATEX_RETURN_IF_ERROR(DownloadGaussians(&Param::m, &state->m_gaussians));
   ATEX_RETURN_IF_ERROR(DownloadGaussians(&Param::v, &state->v_gaussians));
   if (has_textures_) {
