@@ -96,6 +96,23 @@ TEST(Compatibility, UnknownCodecOnSkippedChunkIsFine) {
   EXPECT_TRUE(DecodeAsset(file.data(), file.size()).ok());
 }
 
+// GTWN (1.1): time windows belong to a 4D asset. A file that has them without the deformation
+// field's chunks is corrupt (format_spec §7).
+TEST(Compatibility, TimeWindowsWithoutADeformationFieldAreCorrupt) {
+  Asset asset = Sample();
+  asset.gaussians.time_windows.assign(2 * asset.gaussians.size(), 0.0f);
+  asset.gaussians.time_windows[1] = 3.0f;
+  const auto file = Encode(asset);
+  ASSERT_FALSE(file.empty());
+  auto chunks = Chunks(file);
+  std::erase_if(chunks, [](const OutputChunk& c) { return c.type == "DCFG" || c.type == "DGRD" || c.type == "DMLP"; });
+  const auto still = container::AssembleContainer(chunks);
+  auto back = DecodeAsset(still.data(), still.size());
+  ASSERT_FALSE(back.ok());
+  EXPECT_EQ(back.status().code(), StatusCode::kCorrupt);
+  EXPECT_NE(back.status().message().find("GTWN"), std::string::npos) << back.status().message();
+}
+
 TEST(Compatibility, UnknownCriticalChunkIsRefusedByName) {
   auto chunks = Chunks(Encode(Sample()));
   chunks.push_back(RawChunk("NEW1", true, {1}));
