@@ -94,15 +94,16 @@ Dynamic DynamicArrays(const Asset& asset) {
   d.positions = heads[kHeadPosition];
   d.rotations = heads[kHeadRotation];
   d.scales = heads[kHeadScale];
-  d.colours = heads[kHeadOpacity] || heads[kHeadSH];
+  // Time-local Gaussians change their opacity with time even without an opacity head.
+  d.colours = heads[kHeadOpacity] || heads[kHeadSH] || asset.gaussians.has_time_windows();
   return d;
 }
 
 uint64_t PayloadBytes(const Dynamic& d, size_t count, int frames) {
   const uint64_t f = uint64_t(std::max(frames, 1)), n = count;
   auto frames_of = [&](bool dynamic) { return dynamic ? f : 1; };
-  return n * (6 * frames_of(d.positions) + 4 * frames_of(d.rotations) + 6 * frames_of(d.scales) +
-              4 * frames_of(d.colours));
+  return n *
+         (6 * frames_of(d.positions) + 4 * frames_of(d.rotations) + 6 * frames_of(d.scales) + 4 * frames_of(d.colours));
 }
 
 StatusOr<ViewPayload> BakeKeyframes(const Asset& asset, const std::vector<uint32_t>& kept,
@@ -156,7 +157,8 @@ StatusOr<ViewPayload> BakeKeyframes(const Asset& asset, const std::vector<uint32
         const float* q = &g->rotations[i * 4];
         double norm = std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
         double u[4] = {1, 0, 0, 0};
-        if (norm > 1e-12) for (int c = 0; c < 4; ++c) u[c] = q[c] / norm;
+        if (norm > 1e-12)
+          for (int c = 0; c < 4; ++c) u[c] = q[c] / norm;
         float* prev = &previous_q[i * 4];
         const double dot = u[0] * prev[0] + u[1] * prev[1] + u[2] * prev[2] + u[3] * prev[3];
         const double sign = dot < 0 ? -1.0 : 1.0;  // q and -q are one rotation: blend the near pair

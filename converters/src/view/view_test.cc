@@ -170,6 +170,26 @@ TEST(View, ParametersOfDisabledHeadsAreStoredOnce) {
   ExpectKeyframesMatch(asset, p);
 }
 
+// Time-local Gaussians (model.h time_windows) fade in and out without an opacity head: their
+// colours (opacity included) are stored per keyframe, and each keyframe's opacities are the
+// deformed ones with the window applied.
+TEST(View, TimeWindowsMakeOpacitiesPerKeyframe) {
+  Asset asset = testing::MakeTestAsset({.count = 64, .sh_degree = 0, .textures = false, .deformation = true});
+  auto& field = *asset.deformation;
+  for (int h : {kHeadScale, kHeadOpacity}) {
+    field.config.heads[size_t(h)] = false;
+    field.heads[size_t(h)] = {};
+  }
+  asset.gaussians.time_windows.assign(2 * asset.gaussians.size(), 0.0f);
+  for (size_t i = 0; i < asset.gaussians.size(); i += 2) asset.gaussians.time_windows[2 * i + 1] = 8.0f;  // centre 0
+  ASSERT_TRUE(ValidateAsset(asset).ok());
+  ViewOptions options;
+  options.frames = 4;
+  const ViewPayload p = EncodeAndDecode(asset, options);
+  EXPECT_EQ(p.colour_frames, 4);
+  ExpectKeyframesMatch(asset, p);
+}
+
 TEST(View, StaticAssetHasOneFrame) {
   const Asset asset = testing::MakeTestAsset({.count = 40, .sh_degree = 0, .textures = false, .deformation = false});
   ViewOptions options;
