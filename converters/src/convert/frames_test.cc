@@ -91,7 +91,7 @@ TEST(FrameRange, ParsesAndIncludesTheEnd) {
   const std::vector<double> times = r->Times();
   ASSERT_EQ(times.size(), 11u);
   EXPECT_EQ(times.front(), 0.0);
-  EXPECT_EQ(times.back(), 1.0);  // snapped to END
+  EXPECT_EQ(times.back(), 1.0);                                                        // snapped to END
   for (size_t i = 0; i < times.size(); ++i) EXPECT_EQ(times[i], double(i) / 10) << i;  // decimal, not i * 0.1
   EXPECT_EQ(ParseFrameRange("0.02:0.1:0.04")->Times(), (std::vector<double>{0.02, 0.06, 0.1}));
   // Steps that are no short decimal: start + i * step.
@@ -109,17 +109,16 @@ TEST(FrameRange, MalformedStringsNameTheProblem) {
     const char* text;
     const char* message;
   };
-  for (const Case& c : {Case{"0:1", "is not START:END:STEP"}, Case{"0:1:0.1:2", "is not START:END:STEP"},
-                        Case{"", "is not START:END:STEP"}, Case{"0,1,0.1", "is not START:END:STEP"},
-                        Case{"a:1:0.1", "START 'a' is not a finite number"},
-                        Case{"0:1x:0.1", "END '1x' is not a finite number"},
-                        Case{"0::0.1", "END is empty"}, Case{"0:1:", "STEP is empty"},
-                        Case{"0:inf:0.1", "END 'inf' is not a finite number"},
-                        Case{"0:1:nan", "STEP 'nan' is not a finite number"},
-                        Case{"0:1:-0.1", "STEP -0.1 is not positive"}, Case{"0:1:0", "STEP 0 is not positive"},
-                        Case{"1:0:0.1", "END 0 is before START 1"},
-                        Case{"0:1:1e-6", "gives 1000001 frames, more than the limit of 100000"},
-                        Case{"0:1e300:1e-300", "frames, more than the limit of 100000"}}) {
+  for (const Case& c :
+       {Case{"0:1", "is not START:END:STEP"}, Case{"0:1:0.1:2", "is not START:END:STEP"},
+        Case{"", "is not START:END:STEP"}, Case{"0,1,0.1", "is not START:END:STEP"},
+        Case{"a:1:0.1", "START 'a' is not a finite number"}, Case{"0:1x:0.1", "END '1x' is not a finite number"},
+        Case{"0::0.1", "END is empty"}, Case{"0:1:", "STEP is empty"},
+        Case{"0:inf:0.1", "END 'inf' is not a finite number"}, Case{"0:1:nan", "STEP 'nan' is not a finite number"},
+        Case{"0:1:-0.1", "STEP -0.1 is not positive"}, Case{"0:1:0", "STEP 0 is not positive"},
+        Case{"1:0:0.1", "END 0 is before START 1"},
+        Case{"0:1:1e-6", "gives 1000001 frames, more than the limit of 100000"},
+        Case{"0:1e300:1e-300", "frames, more than the limit of 100000"}}) {
     auto r = ParseFrameRange(c.text);
     ASSERT_FALSE(r.ok()) << "'" << c.text << "' parsed";
     EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument) << c.text;
@@ -214,6 +213,33 @@ TEST_F(FramesTest, PlyFramesAreTheDeformedGaussiansBitForBit) {
   EXPECT_EQ(manifest["frames"][1]["file"], "frame_0001.ply");
   EXPECT_EQ(manifest["frames"][1]["time"].get<double>(), 0.5);
   EXPECT_EQ(report->ToJson()["frames"]["count"], 3);
+}
+
+// Time-local Gaussians (model.h time_windows): a static file of such an asset needs a time (the
+// canonical set would show every one at every time); at a time, and per frame, the window is applied.
+TEST(ConvertTimeWindows, NeedATimeAndApplyTheWindowWhenGivenOne) {
+  testing::TempDir dir;
+  Asset asset = DeformingAsset(0);
+  asset.gaussians.time_windows.assign(2 * asset.gaussians.size(), 0.0f);
+  asset.gaussians.time_windows[0] = 0.0f;  // Gaussian 0 lives around t = 0 only
+  asset.gaussians.time_windows[1] = 10.0f;
+  const std::string atex = (dir / "w.atex").string();
+  ASSERT_TRUE(WriteAssetFile(atex, asset).ok());
+  auto refused = ConvertFile(atex, (dir / "w.ply").string());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("--time"), std::string::npos) << refused.status().message();
+  for (double t : {0.0, 1.0}) {
+    ConvertOptions at;
+    at.time = t;
+    const std::string ply = (dir / ("w" + std::to_string(int(t)) + ".ply")).string();
+    auto r = ConvertFile(atex, ply, at);
+    ASSERT_TRUE(r.ok()) << r.status().ToString();
+    auto g = ReadPlyGaussians(ply);
+    ASSERT_TRUE(g.ok()) << g.status().ToString();
+    Gaussians deformed;
+    ASSERT_TRUE(DeformForward(*asset.deformation, asset.gaussians, t, &deformed, nullptr).ok());
+    EXPECT_EQ(g->opacity_logits[0], deformed.opacity_logits[0]) << "t = " << t;
+  }
 }
 
 TEST_F(FramesTest, SpzFramesMatchWithinQuantisation) {
@@ -552,8 +578,7 @@ TEST(ConvertCli, FramesAndFourDgs) {
 
   // A malformed range fails before anything is read, naming the problem.
   const std::string err_path = (dir / "err.txt").string();
-  command = atex_bin.string() + " convert " + atex + " --frames 0:1:-0.5 " + (dir / "bad").string() + " 2> " +
-            err_path;
+  command = atex_bin.string() + " convert " + atex + " --frames 0:1:-0.5 " + (dir / "bad").string() + " 2> " + err_path;
   EXPECT_NE(std::system(command.c_str()), 0);
   std::ifstream err(err_path);
   const std::string message((std::istreambuf_iterator<char>(err)), std::istreambuf_iterator<char>());

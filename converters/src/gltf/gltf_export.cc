@@ -208,8 +208,7 @@ Status SplatExporter::AddBaseSpz(const Gaussians& g, json& attributes, json& khr
   attributes[gltf::kAttrOpacity] = writer_.AddAccessor(-1, 0, gltf::kComponentFloat, false, n, "SCALAR");
   for (int degree = 0; degree <= g.sh_degree; ++degree) {
     for (int coef = 0; coef <= 2 * degree; ++coef) {
-      attributes[gltf::ShAttribute(degree, coef)] =
-          writer_.AddAccessor(-1, 0, gltf::kComponentFloat, false, n, "VEC3");
+      attributes[gltf::ShAttribute(degree, coef)] = writer_.AddAccessor(-1, 0, gltf::kComponentFloat, false, n, "VEC3");
     }
   }
   khr_extensions[gltf::kKhrSpz2] = {{"bufferView", view}};
@@ -231,9 +230,8 @@ Status SplatExporter::AddTextures(const TexturePool& t, size_t n, json& attribut
 
   const size_t texels = t.texel_count();
   ATEX_ASSIGN_OR_RETURN(int texel_accessor, FloatAccessor(t.texels, texels, 4, "VEC4", false, lossy(), false));
-  khr_extensions[gltf::kAtexTextures] = {{"texels", texel_accessor},
-                                         {"colorScale", gltf::kTextureColorScale},
-                                         {"alphaScale", gltf::kTextureAlphaScale}};
+  khr_extensions[gltf::kAtexTextures] = {
+      {"texels", texel_accessor}, {"colorScale", gltf::kTextureColorScale}, {"alphaScale", gltf::kTextureAlphaScale}};
   writer_.UseExtension(gltf::kAtexTextures, false);
   return Status::Ok();
 }
@@ -270,9 +268,8 @@ Status SplatExporter::AddDeformation(const Gaussians& g, const DeformationField*
   }
   if (field != nullptr) {
     const DeformationConfig& c = field->config;
-    json grid = {{"channels", c.grid.channels},
-                 {"baseResolution", c.grid.base_resolution},
-                 {"multires", c.grid.multires}};
+    json grid = {
+        {"channels", c.grid.channels}, {"baseResolution", c.grid.base_resolution}, {"multires", c.grid.multires}};
     json planes = json::array();
     for (size_t s = 0; s < field->planes.size(); ++s) {
       json scale_planes = json::array();
@@ -327,7 +324,8 @@ Status SplatExporter::Build(const Asset& asset) {
                      "glTF export: the asset has no Gaussians (glTF accessors need count >= 1)");
   if (n > UINT32_MAX) return MakeError(StatusCode::kLimitExceeded, "glTF export: ", n, " Gaussians exceed 2^32");
   if (options_.spz && options_.meshopt) {
-    return MakeError(StatusCode::kInvalidArgument, "glTF export: SPZ compression and EXT_meshopt_compression exclude "
+    return MakeError(StatusCode::kInvalidArgument,
+                     "glTF export: SPZ compression and EXT_meshopt_compression exclude "
                      "each other (the SPZ stream is already compressed); choose one");
   }
   if (options_.meshopt && !gltf::MeshoptAvailable()) {
@@ -341,6 +339,13 @@ Status SplatExporter::Build(const Asset& asset) {
   }
   ATEX_RETURN_IF_ERROR(Progress(0.0));
 
+  if (!options_.time && asset.gaussians.has_time_windows()) {
+    // The base attributes would be the canonical Gaussians, which a player draws at every time, and
+    // the deformation extension has no place for the windows.
+    return MakeError(StatusCode::kUnsupported,
+                     "glTF export: the asset has time-local Gaussians (GTWN), which glTF cannot carry; export "
+                     "one time with --time T (or a sequence with --frames)");
+  }
   // The Gaussians the base shows: canonical, or deformed to the requested time.
   const Gaussians* shown = &asset.gaussians;
   Gaussians deformed;
@@ -371,13 +376,6 @@ Status SplatExporter::Build(const Asset& asset) {
     ATEX_RETURN_IF_ERROR(AddTextures(*asset.textures, n, attributes, khr_extensions));
   const DeformationField* field =
       (options_.deformation && !options_.time && asset.deformation) ? &*asset.deformation : nullptr;
-  if (field != nullptr && asset.gaussians.has_time_windows()) {
-    // The glTF extension carries the canonical Gaussians and the field, not the windows: every
-    // time-local Gaussian would show at every time.
-    return MakeError(StatusCode::kUnsupported,
-                     "glTF export: the asset has time-local Gaussians (GTWN), which the deformation extension "
-                     "cannot carry; export one time with --time T");
-  }
   ATEX_RETURN_IF_ERROR(AddDeformation(*shown, field, attributes, khr_extensions));
   ATEX_RETURN_IF_ERROR(Progress(0.9));
 

@@ -69,6 +69,22 @@ TEST(GltfExport, BaseAttributesFollowKhrGaussianSplatting) {
   EXPECT_FALSE(prim["attributes"].contains("KHR_gaussian_splatting:SH_DEGREE_4_COEF_0"));
 }
 
+// Time-local Gaussians (model.h time_windows) have no place in glTF: without a time the export
+// refuses (a player would draw every one at every time); at a time it bakes them like the rest.
+TEST(GltfExport, TimeWindowsNeedATime) {
+  Asset asset = MakeTestAsset({.count = 16, .sh_degree = 0, .textures = false, .deformation = true});
+  asset.gaussians.time_windows.assign(2 * asset.gaussians.size(), 0.0f);
+  asset.gaussians.time_windows[1] = 10.0f;
+  auto refused = EncodeGlb(asset, {});
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), StatusCode::kUnsupported);
+  EXPECT_NE(refused.status().message().find("--time"), std::string::npos) << refused.status().message();
+  GltfExportOptions at_time;
+  at_time.time = 0.5;
+  auto baked = EncodeGlb(asset, at_time);
+  EXPECT_TRUE(baked.ok()) << baked.status().ToString();
+}
+
 TEST(GltfExport, PositionMinMaxAndAlignment) {
   const Asset asset = MakeTestAsset({.count = 33, .sh_degree = 1});
   const GlbParts p = Export(asset);
