@@ -121,6 +121,10 @@ StatusOr<std::string> AddFastObjectSeeds(const Dataset& data, const TrainConfig&
   options.window_frames = f.window_frames;
   TransientSeedReport report;
   ATEX_ASSIGN_OR_RETURN(Gaussians seeds, TransientSeeds(data, init, options, &report));
+  if (seeds.size() == 0) {  // nothing moves fast: the model stays as it is (and without windows)
+    return StrCat("no fast-object seeds: ", report.transient, " transient (timestep, voxel) pairs of ",
+                  report.timesteps, " timesteps");
+  }
 
   ModelState state;
   ATEX_RETURN_IF_ERROR(backend.Save(&state));
