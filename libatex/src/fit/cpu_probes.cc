@@ -23,7 +23,9 @@ bool SameLinear(const Linear& a, const Linear& b) {
   return a.in == b.in && a.out == b.out && SameValues(a.weight, b.weight) && SameValues(a.bias, b.bias);
 }
 
-// Bitwise equality of two fields (the residuals are a function of the field's values).
+}  // namespace
+
+// The residuals are a function of the field's values.
 bool SameField(const DeformationField& a, const DeformationField& b) {
   const DeformationConfig &ca = a.config, &cb = b.config;
   if (ca.grid.channels != cb.grid.channels || ca.grid.base_resolution != cb.grid.base_resolution ||
@@ -51,6 +53,8 @@ bool SameField(const DeformationField& a, const DeformationField& b) {
   }
   return true;
 }
+
+namespace {
 
 uint32_t Bits(float x) {
   uint32_t b;
@@ -145,8 +149,15 @@ void CpuProbeRenderer::Evict(size_t gaussians) {
   last_used_ = std::move(kept_used);
 }
 
+Status CpuProbeRenderer::DeformCached(const DeformationField& field, const Gaussians& canonical,
+                                      const std::vector<double>& times, size_t asset_gaussians,
+                                      std::vector<Gaussians>* out) {
+  ++renders_;
+  return Deform(field, canonical, times, asset_gaussians, out);
+}
+
 Status CpuProbeRenderer::Deform(const DeformationField& field, const Gaussians& canonical,
-                                const std::vector<double>& times, std::vector<Gaussians>* out) {
+                                const std::vector<double>& times, size_t asset_gaussians, std::vector<Gaussians>* out) {
   ResetUnlessSame(field, times, canonical.sh_degree);
   const size_t n = canonical.size(), probes = times.size(), stride = static_cast<size_t>(stride_);
   const size_t per_slot = probes * stride;
@@ -205,7 +216,7 @@ Status CpuProbeRenderer::Deform(const DeformationField& field, const Gaussians& 
       for (size_t k = 0; k < sh; ++k) g.sh[sh * i + k] += v[11 + k];
     }
   }
-  Evict(n);
+  Evict(std::max(n, asset_gaussians));
   return Status::Ok();
 }
 
@@ -220,7 +231,7 @@ StatusOr<CpuProbeRenderer::Prepared> CpuProbeRenderer::Prepare(const Asset& asse
   if (request.apply_deformation && asset.deformation.has_value()) {
     std::vector<double> times;
     for (const Camera& c : cameras) times.push_back(c.time);
-    ATEX_RETURN_IF_ERROR(Deform(*asset.deformation, asset.gaussians, times, &in.deformed));
+    ATEX_RETURN_IF_ERROR(Deform(*asset.deformation, asset.gaussians, times, asset.gaussians.size(), &in.deformed));
   }
   return in;
 }

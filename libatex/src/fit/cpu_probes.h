@@ -38,6 +38,9 @@
 
 namespace atex::fit::internal {
 
+// Bitwise equality of two deformation fields (configuration and every value).
+bool SameField(const DeformationField& a, const DeformationField& b);
+
 class CpuProbeRenderer {
  public:
   // Renders `asset` from `cameras` as train::Backend::Render would with `request`
@@ -50,6 +53,17 @@ class CpuProbeRenderer {
   // it computes stay cached for the renders that follow.
   StatusOr<std::vector<float>> Importance(const Asset& asset, const std::vector<Camera>& cameras,
                                           const train::RenderRequest& request);
+
+  // The Gaussians of `canonical` deformed to each time of `times` (out[t]), through the
+  // cache of residuals (IncrementalProbes deforms only the Gaussians a candidate changed).
+  // `asset_gaussians` sizes the cache's eviction (the Gaussians of the whole asset).
+  Status DeformCached(const DeformationField& field, const Gaussians& canonical, const std::vector<double>& times,
+                      size_t asset_gaussians, std::vector<Gaussians>* out);
+  // Tiles composited and kept by IncrementalProbes, added to the counters below.
+  void CountTiles(uint64_t drawn, uint64_t reused) {
+    tiles_drawn_ += drawn;
+    tiles_reused_ += reused;
+  }
 
   // Gaussians deformed (per probe set) and reused since construction.
   uint64_t deformed() const { return deformed_; }
@@ -71,7 +85,7 @@ class CpuProbeRenderer {
 
   // The deformed Gaussians of `canonical` at every time of `times`.
   Status Deform(const DeformationField& field, const Gaussians& canonical, const std::vector<double>& times,
-                std::vector<Gaussians>* out);
+                size_t asset_gaussians, std::vector<Gaussians>* out);
   // Forgets every entry unless the field, the times and the SH degree are the cached ones.
   void ResetUnlessSame(const DeformationField& field, const std::vector<double>& times, int sh_degree);
   // Drops the entries no render of the last few used, once the cache holds many more
