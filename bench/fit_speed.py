@@ -15,6 +15,7 @@ timed). Prints one table and writes the rows as JSON lines (--out).
         --data ../shared/data/dnerf_lego_tiny/tiny_dnerf_data.npz --repeats 1
 """
 import argparse
+import hashlib
 import json
 import os
 import subprocess
@@ -73,8 +74,12 @@ def main():
             for r in range(a.repeats):
                 for label, binary in (("old", a.old), ("new", a.new)):
                     out = os.path.join(tmp, f"{label}_{budget}_{r}.atex")
+                    load_before = os.getloadavg()[0]
                     seconds, report = run_fit(binary, a.input, out, budget, a.fit_args.split())
+                    load_after = os.getloadavg()[0]
                     size = os.path.getsize(out)
+                    with open(out, "rb") as f:
+                        digest = hashlib.sha256(f.read()).hexdigest()
                     timing = report.get("plan_timing", [{}])[0]
                     row = {"binary": label, "path": binary, "budget": budget, "budget_bytes": parse_size(budget),
                            "repeat": r, "wall_s": round(seconds, 3), "bytes": size,
@@ -84,13 +89,20 @@ def main():
                            "render_s": timing.get("seconds", {}).get("render"),
                            "gaussians": report["levers"]["gaussians"]["after"],
                            "moves": len(report.get("moves", [])),
-                           "proxy_psnr": report.get("estimated_psnr_vs_input")}
+                           "proxy_psnr": report.get("estimated_psnr_vs_input"),
+                           "sha256": digest, "load_1min_before": round(load_before, 2),
+                           "load_1min_after": round(load_after, 2)}
                     if a.data:
                         row["test_psnr"] = test_psnr(a.new, out, a.data)
                     rows.append(row)
                     print(json.dumps(row), file=sys.stderr)
+    # The same budget's outputs of the two binaries: byte-identical or not.
+    for row in rows:
+        pair = [o for o in rows if o["budget"] == row["budget"] and o["repeat"] == row["repeat"]]
+        row["same_file_as_old"] = all(o["sha256"] == pair[0]["sha256"] for o in pair)
     header = ["binary", "budget", "wall_s", "plan_s", "render_s", "measurements", "bytes", "within_budget",
-              "verify", "gaussians", "moves", "proxy_psnr"] + (["test_psnr"] if a.data else [])
+              "verify", "gaussians", "moves", "proxy_psnr"] + (["test_psnr"] if a.data else []) + \
+             ["same_file_as_old", "load_1min_before", "load_1min_after"]
     print("| " + " | ".join(header) + " |")
     print("|" + "---|" * len(header))
     for row in rows:

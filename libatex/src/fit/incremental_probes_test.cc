@@ -300,6 +300,51 @@ TEST(Measurer, RangeStablePrunesRankAsExactOnes) {
   }
 }
 
+// Confirming a taken range-stable prune renders its exact decode: the distortion the
+// confirmed measurer returns is the exact measurer's, and after the confirmed take the
+// next measurements are exact ones too.
+TEST(Measurer, ConfirmedPrunesAreExact) {
+  Asset asset = DynamicAsset(19, 800);
+  const std::vector<Probe> probes = OrbitProbes(asset, 4, 64, 48);
+  ProbeRenderer renderer(nullptr, probes);
+  ASSERT_TRUE(renderer.EnsureImportance(&asset).ok());
+  const std::vector<uint32_t> order = ImportanceOrder(asset, 1);
+  WriteOptions write;
+  write.positions = ScalarEncoding::kQuant16;
+  write.rotations = write.log_scales = write.opacities = write.sh_dc = write.texels = ScalarEncoding::kQuant8;
+  const internal::State start = internal::InitialState(asset, write);
+  Move prune;
+  prune.lever = Lever::kPrune;
+  prune.count = 300;
+  internal::State pruned = start;
+  ASSERT_TRUE(ApplyMove(prune, order, &pruned.asset, &pruned.write, &pruned.kept).ok());
+  Move texture;
+  texture.lever = Lever::kTextures;
+  texture.count = 5;
+  internal::State shrunk = pruned;
+  ASSERT_TRUE(ApplyMove(texture, order, &shrunk.asset, &shrunk.write, &shrunk.kept).ok());
+  std::vector<double> taken, after;
+  for (internal::PruneMeasure mode : {internal::PruneMeasure::kExact, internal::PruneMeasure::kRangeStableConfirmed,
+                                      internal::PruneMeasure::kRangeStable}) {
+    EncodeCache chunks;
+    MeasureTiming timing;
+    ProbeRenderer own(nullptr, probes);
+    internal::Measurer measurer(&own, &chunks, &timing, mode);
+    ASSERT_TRUE(measurer.Start(asset, start).ok());
+    auto c = measurer.Measure(pruned, prune);
+    ASSERT_TRUE(c.ok()) << c.status().ToString();
+    auto measured = measurer.Take(pruned, *c);
+    ASSERT_TRUE(measured.ok()) << measured.status().ToString();
+    taken.push_back(measured->distortion);
+    auto next = measurer.Measure(shrunk, texture);
+    ASSERT_TRUE(next.ok()) << next.status().ToString();
+    after.push_back(next->measured.distortion);
+  }
+  EXPECT_NEAR(taken[1], taken[0], 1e-5 * taken[0]);
+  EXPECT_NEAR(after[1], after[0], 1e-5 * after[0]);
+  EXPECT_NE(taken[2], taken[0]) << "the unconfirmed take leaves out the survivors' re-rounding";
+}
+
 // A plan built with range-stable prunes replays to exactly the bytes it recorded (each
 // move's bytes are the exact encoding's), so no budget is ever exceeded.
 TEST(Measurer, PlansReplayToTheirBytes) {
