@@ -399,28 +399,37 @@ bool IncrementalProbes::RenderTile(const Job& job, const detail::CameraModel<flo
     (take_base ? a : f)++;
   }
   if (!dirty) return false;  // no pixel of the tile changes
+  // The marked pixels' box: a splat whose reach misses it fails the skip test at each of
+  // them, where the reference loop passes it by, so it is left out of the compositing.
+  const int tx0 = (t % cam.tiles_x) * detail::kTileSize, ty0 = (t / cam.tiles_x) * detail::kTileSize;
+  PixelBox marked{cam.width, -1, cam.height, -1};
+  for (int q = 0; q < kTilePixels; ++q) {
+    if (!mask[q]) continue;
+    const int x = tx0 + q % detail::kTileSize, y = ty0 + q / detail::kTileSize;
+    marked = {std::min(marked.x0, x), std::max(marked.x1, x + 1), std::min(marked.y0, y), std::max(marked.y1, y + 1)};
+  }
   thread_local std::vector<detail::SplatParams<float>> splats;
   thread_local std::vector<float> depths;
   thread_local std::vector<SplatReach> reach;
+  thread_local std::vector<uint32_t> indices;
   splats.clear();
   depths.clear();
   reach.clear();
+  indices.clear();
+  const Texels* base_texels = job.textures != nullptr ? &texels_ : nullptr;
   for (uint64_t e = pp->list_ranges[i]; e < pp->list_ranges[i + 1]; ++e) {
     const uint32_t j = pp->lists[e];
     const uint32_t k = job.fresh_of[j];
-    if (k != kNoBase) {
-      splats.push_back(Params(pp->fresh[k], job.fresh_texels, k));
-      depths.push_back(pp->fresh[k].depth);
-      reach.push_back(pp->fresh[k].reach);
-    } else {
-      const uint32_t b = job.map.base_of[j];
-      splats.push_back(Params(base.splats[b], job.textures != nullptr ? &texels_ : nullptr, b));
-      depths.push_back(base.splats[b].depth);
-      reach.push_back(base.splats[b].reach);
-    }
+    const uint32_t b = k != kNoBase ? kNoBase : job.map.base_of[j];
+    const Splat& sp = k != kNoBase ? pp->fresh[k] : base.splats[b];
+    const PixelBox& box = sp.reach.box;
+    if (!(box.x0 < marked.x1 && marked.x0 < box.x1 && box.y0 < marked.y1 && marked.y0 < box.y1)) continue;
+    splats.push_back(k != kNoBase ? Params(sp, job.fresh_texels, k) : Params(sp, base_texels, b));
+    depths.push_back(sp.depth);
+    reach.push_back(sp.reach);
+    indices.push_back(j);
   }
-  const TileList list{splats.data(), reach.data(), depths.data(), pp->lists.data() + pp->list_ranges[i],
-                      static_cast<int>(splats.size())};
+  const TileList list{splats.data(), reach.data(), depths.data(), indices.data(), static_cast<int>(splats.size())};
   CompositePixels(cam, t, list, job.background, mask, pp->color.data(), pp->stops.data());
   return true;
 }
