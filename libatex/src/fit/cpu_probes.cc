@@ -2,6 +2,9 @@
 // unchanged positions reused.
 #include "cpu_probes.h"
 
+#include "atex/train/trainer.h"
+#include "incremental_probes.h"
+
 #include <algorithm>
 #include <cstring>
 #include <exception>
@@ -254,8 +257,38 @@ StatusOr<std::vector<Image>> CpuProbeRenderer::Render(const Asset& asset, const 
   return images;
 }
 
+CpuProbeRenderer::CpuProbeRenderer() = default;
+CpuProbeRenderer::~CpuProbeRenderer() = default;
+
+IncrementalProbes* CpuProbeRenderer::Incremental(const std::vector<Camera>& cameras) {
+  bool same = incremental_ != nullptr && incremental_cameras_.size() == cameras.size();
+  for (size_t k = 0; same && k < cameras.size(); ++k) same = SameCamera(incremental_cameras_[k], cameras[k]);
+  if (!same) {
+    incremental_cameras_ = cameras;
+    incremental_ = std::make_unique<IncrementalProbes>(this, cameras);
+    importance_asset_.reset();
+  }
+  return incremental_.get();
+}
+
+const Asset* CpuProbeRenderer::ImportanceBase() const {
+  const bool current = importance_asset_ && incremental_ && incremental_->generation() == importance_generation_;
+  return current ? &*importance_asset_ : nullptr;
+}
+
 StatusOr<std::vector<float>> CpuProbeRenderer::Importance(const Asset& asset, const std::vector<Camera>& cameras,
                                                           const train::RenderRequest& request) {
+  const train::RenderRequest own = train::RenderRequestFor(asset);
+  if (request.active_sh_degree == own.active_sh_degree && request.apply_deformation == own.apply_deformation &&
+      request.use_textures == own.use_textures && request.background == own.background &&
+      request.near_plane == own.near_plane) {
+    IncrementalProbes* incremental = Incremental(cameras);
+    importance_asset_.reset();
+    ATEX_ASSIGN_OR_RETURN(std::vector<float> importance, incremental->RenderImportance(asset));
+    importance_asset_ = asset;
+    importance_generation_ = incremental->generation();
+    return importance;
+  }
   ATEX_ASSIGN_OR_RETURN(Prepared in, Prepare(asset, cameras, request));
   std::vector<float> importance(asset.gaussians.size(), 0.0f);
   for (size_t k = 0; k < cameras.size(); ++k) {

@@ -1,3 +1,4 @@
+// IncrementalProbes (incremental_probes.h): candidate renders against the base.
 #include "incremental_probes.h"
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include "atex/render.h"
 #include "atex/train/trainer.h"
 #include "render/parallel.h"
+#include "incremental_probes_state.h"
 #include "render/render_internal.h"
 #include "tile_composite.h"
 
@@ -46,42 +48,6 @@ void Subset(const Asset& asset, const std::vector<uint32_t>& indices, Gaussians*
 }
 
 }  // namespace
-
-// The base's render settings: a candidate with others is rendered in full.
-struct IncrementalProbes::Settings {
-  train::RenderRequest request;
-  int sh_degree = 0;
-  bool textured = false;
-  std::optional<DeformationField> field;
-
-  bool Same(const Settings& o) const {
-    const train::RenderRequest &a = request, &b = o.request;
-    return a.active_sh_degree == b.active_sh_degree && a.apply_deformation == b.apply_deformation &&
-           a.use_textures == b.use_textures && a.background == b.background && a.near_plane == b.near_plane &&
-           sh_degree == o.sh_degree && textured == o.textured && field.has_value() == o.field.has_value() &&
-           (!field || SameField(*field, *o.field));
-  }
-};
-
-struct IncrementalProbes::PendingProbe {
-  int tiles_total = 0;                   // of the probe's image
-  std::vector<Splat> fresh;              // [changed]
-  std::vector<int> tiles;                // composited again, ascending
-  std::vector<uint64_t> list_ranges;     // [tiles + 1] into lists
-  std::vector<uint32_t> lists;           // candidate indices in compositing order
-  std::vector<float> color;              // [pixels][3] the candidate's image
-  std::vector<StopKey> stops;            // [pixels] (candidate indices)
-};
-
-struct IncrementalProbes::Pending {
-  uint64_t generation = 0;
-  size_t size = 0;                 // candidate Gaussians
-  std::vector<uint32_t> base_of;   // as CandidateMap
-  std::vector<uint32_t> changed;   // the Gaussians projected again (all of them for a full render)
-  Settings settings;
-  Texels changed_texels;           // of `changed`, in that order
-  std::vector<PendingProbe> probes;
-};
 
 IncrementalProbes::IncrementalProbes(CpuProbeRenderer* deformer, std::vector<Camera> cameras)
     : deformer_(deformer), cameras_(std::move(cameras)), probes_(cameras_.size()) {
@@ -130,7 +96,8 @@ StatusOr<std::vector<Image>> IncrementalProbes::Render(const Asset& asset, const
   out->settings.sh_degree = asset.gaussians.sh_degree;
   out->settings.textured = out->settings.request.use_textures && asset.textures.has_value();
   if (out->settings.request.apply_deformation && asset.deformation) out->settings.field = asset.deformation;
-  const bool full = settings_ == nullptr || !settings_->Same(out->settings);
+  // RenderImportance needs every pixel composited (its weights sum over all of them).
+  const bool full = weigh_ || settings_ == nullptr || !settings_->Same(out->settings);
   if (full) {
     out->changed.resize(n);
     for (size_t j = 0; j < n; ++j) out->changed[j] = static_cast<uint32_t>(j);
@@ -189,6 +156,7 @@ struct IncrementalProbes::Job {
   const TexturePool* textures = nullptr;  // of `changed`, null for an untextured render
   const Texels* fresh_texels = nullptr;
   detail::Vec3<float> background{};
+  bool weigh = false;  // sum each splat's blending weights (PendingProbe::importance)
 };
 
 detail::SplatParams<float> IncrementalProbes::Params(const Splat& sp, const Texels* texels, size_t i) {
@@ -210,6 +178,7 @@ StatusOr<std::vector<Image>> IncrementalProbes::RenderProbes(const Asset& asset,
   const size_t n = asset.gaussians.size();
   const Settings& settings = out->settings;
   Job job{map, full, out->changed, {}, {}, {}};
+  job.weigh = weigh_;
   const size_t nc = job.changed.size();
   // Base Gaussians that are removed or changed (their old splats leave the tile lists).
   job.cand_of.assign(base_size_, kNoBase);
@@ -308,6 +277,7 @@ uint64_t IncrementalProbes::RenderProbe(const Job& job, const detail::CameraMode
   const int tiles = cam.tiles_x * cam.tiles_y;
   pp->tiles_total = tiles;
   pp->fresh.assign(nc, Splat{});
+  pp->importance.assign(job.weigh ? job.map.base_of.size() : 0, 0.0f);
   for (size_t k = 0; k < nc; ++k) {
     Splat& s = pp->fresh[k];
     s.depth = o.depth[k];
@@ -430,78 +400,14 @@ bool IncrementalProbes::RenderTile(const Job& job, const detail::CameraModel<flo
     indices.push_back(j);
   }
   const TileList list{splats.data(), reach.data(), depths.data(), indices.data(), static_cast<int>(splats.size())};
-  CompositePixels(cam, t, list, job.background, mask, pp->color.data(), pp->stops.data());
+  thread_local std::vector<float> weights;
+  weights.assign(job.weigh ? splats.size() : 0, 0.0f);
+  CompositePixels(cam, t, list, job.background, mask, pp->color.data(), pp->stops.data(),
+                  job.weigh ? weights.data() : nullptr);
+  // Tiles come in ascending order, so each Gaussian's weights are summed tile by tile as
+  // RasterizeForward sums its entries (a splat left out above has weight 0 here).
+  for (size_t k = 0; k < weights.size(); ++k) pp->importance[indices[k]] += weights[k];
   return true;
-}
-
-Status IncrementalProbes::Commit(const Pending& pending) {
-  if (pending.generation != generation_) {
-    return MakeError(StatusCode::kInvalidArgument,
-                     "probe render: committing a candidate rendered against an earlier base");
-  }
-  try {
-    CommitUnchecked(pending);
-  } catch (const std::bad_alloc&) {
-    return MakeError(StatusCode::kLimitExceeded, "fit: probe render: out of memory");
-  }
-  return Status::Ok();
-}
-
-void IncrementalProbes::CommitUnchecked(const Pending& pending) {
-  const size_t n = pending.size;
-  std::vector<uint32_t> fresh_of(n, kNoBase);
-  for (size_t k = 0; k < pending.changed.size(); ++k) fresh_of[pending.changed[k]] = static_cast<uint32_t>(k);
-  std::vector<uint32_t> cand_of(base_size_, kNoBase);
-  for (size_t j = 0; j < n; ++j)
-    if (pending.base_of[j] != kNoBase) cand_of[pending.base_of[j]] = static_cast<uint32_t>(j);
-  Texels texels;
-  if (pending.settings.textured) {
-    const Texels& fresh = pending.changed_texels;
-    texels.offset.assign(1, 0);
-    for (size_t j = 0; j < n; ++j) {
-      const bool f = fresh_of[j] != kNoBase;
-      const Texels& from = f ? fresh : texels_;
-      const size_t i = f ? fresh_of[j] : pending.base_of[j];
-      texels.height.push_back(from.height[i]);
-      texels.constant.push_back(from.constant[i]);
-      texels.width.push_back(from.width[i]);
-      texels.values.insert(texels.values.end(), from.values.begin() + from.offset[i] * 4,
-                           from.values.begin() + from.offset[i + 1] * 4);
-      texels.offset.push_back(texels.values.size() / 4);
-    }
-  }
-  std::vector<ProbeBase> probes(pending.probes.size());
-  for (size_t p = 0; p < probes.size(); ++p) {
-    const PendingProbe& pp = pending.probes[p];
-    const ProbeBase& old = probes_[p];
-    ProbeBase& nb = probes[p];
-    nb.splats.resize(n);
-    for (size_t j = 0; j < n; ++j) {
-      nb.splats[j] = fresh_of[j] != kNoBase ? pp.fresh[fresh_of[j]] : old.splats[pending.base_of[j]];
-    }
-    const size_t tiles = size_t(pp.tiles_total);
-    nb.tile_ranges.assign(tiles + 1, 0);
-    for (size_t i = 0, t = 0; t < tiles; ++t) {
-      if (i < pp.tiles.size() && size_t(pp.tiles[i]) == t) {
-        nb.tile_list.insert(nb.tile_list.end(), pp.lists.begin() + pp.list_ranges[i],
-                            pp.lists.begin() + pp.list_ranges[i + 1]);
-        ++i;
-      } else if (!old.tile_ranges.empty()) {
-        // An unaffected tile holds only unchanged survivors.
-        for (uint64_t e = old.tile_ranges[t]; e < old.tile_ranges[t + 1]; ++e) {
-          nb.tile_list.push_back(cand_of[old.tile_list[e]]);
-        }
-      }
-      nb.tile_ranges[t + 1] = nb.tile_list.size();
-    }
-    nb.color = pp.color;
-    nb.stops = pp.stops;
-  }
-  probes_ = std::move(probes);
-  texels_ = std::move(texels);
-  base_size_ = n;
-  settings_ = std::make_unique<Settings>(pending.settings);
-  ++generation_;
 }
 
 }  // namespace atex::fit::internal

@@ -80,6 +80,14 @@ class IncrementalProbes {
   // `pending` is not null it receives what Commit needs.
   StatusOr<std::vector<Image>> Render(const Asset& asset, const CandidateMap& map,
                                       std::shared_ptr<const Pending>* pending = nullptr);
+  // Renders `asset` in full as the new base (every Gaussian new) and returns, per
+  // Gaussian, its blending weight summed over the probes: render.h's importance as
+  // fit::EnsureImportance and CpuProbeRenderer::Importance measure it (the same sums in the
+  // same order, so the same values). `images` (optional) receives the renders.
+  StatusOr<std::vector<float>> RenderImportance(const Asset& asset, std::vector<Image>* images = nullptr);
+  // Commits so far: a base is identified by this count.
+  uint64_t generation() const { return generation_; }
+
   // The rendered candidate becomes the base. An error when another commit
   // came between its render and this one (kInvalidArgument).
   Status Commit(const Pending& pending);
@@ -142,6 +150,7 @@ class IncrementalProbes {
   std::vector<ProbeBase> probes_;
   Texels texels_;
   uint64_t projected_ = 0, tiles_drawn_ = 0, tiles_kept_ = 0;
+  bool weigh_ = false;  // RenderImportance's render: sum the blending weights
 };
 
 }  // namespace atex::fit::internal

@@ -8,6 +8,7 @@
 
 #include "atex/container.h"
 #include "atex/fit.h"
+#include "atex/render.h"
 #include "atex/train/trainer.h"
 #include "container/synthetic_asset.h"
 #include "fit/cpu_probes.h"
@@ -208,6 +209,52 @@ TEST(IncrementalProbes, RangeStablePruneRendersTheBaseLessTheRemoved) {
   ASSERT_TRUE(images.ok()) << images.status().ToString();
   EXPECT_LE(MaxDifference(*images, chain.Full(survivors)), kTolerance);
   EXPECT_GT(MaxDifference(*images, chain.Full(moved)), 1e-3f) << "the moved values must not be rendered";
+}
+
+// The importance from the incremental renderer is the reference rasteriser's, bitwise
+// (the prune order depends on it), and leaves that render as the plan's first base.
+TEST(IncrementalProbes, ImportanceIsTheReferenceRasterisersBitwise) {
+  const Asset asset = DynamicAsset(23);
+  const std::vector<Camera> cameras = Cameras(asset);
+  const train::RenderRequest request = train::RenderRequestFor(asset);
+  CpuProbeRenderer renderer;
+  auto importance = renderer.Importance(asset, cameras, request);
+  ASSERT_TRUE(importance.ok()) << importance.status().ToString();
+  ASSERT_NE(renderer.ImportanceBase(), nullptr);
+  // The reference: RenderForward of the same deformed Gaussians, summed over the probes.
+  std::vector<double> times;
+  for (const Camera& c : cameras) times.push_back(c.time);
+  std::vector<Gaussians> deformed;
+  ASSERT_TRUE(
+      renderer.DeformCached(*asset.deformation, asset.gaussians, times, asset.gaussians.size(), &deformed).ok());
+  RenderSettings settings;
+  settings.background = request.background;
+  settings.near_plane = request.near_plane;
+  settings.active_sh_degree = request.active_sh_degree;
+  std::vector<float> expected(asset.gaussians.size(), 0.0f);
+  for (size_t k = 0; k < cameras.size(); ++k) {
+    auto out = RenderForward<float>(cameras[k], deformed[k], &*asset.textures, settings);
+    ASSERT_TRUE(out.ok()) << out.status().ToString();
+    for (size_t i = 0; i < expected.size(); ++i) expected[i] += out->importance[i];
+  }
+  ASSERT_EQ(importance->size(), expected.size());
+  size_t positive = 0;
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ((*importance)[i], expected[i]) << "Gaussian " << i;
+    positive += expected[i] > 0;
+  }
+  EXPECT_GT(positive, expected.size() / 4) << "the probes must see the asset";
+  // A later commit retires the importance render as the base.
+  IncrementalProbes* probes = renderer.Incremental(cameras);
+  CandidateMap same;
+  same.base_of = Iota(asset.gaussians.size());
+  std::shared_ptr<const IncrementalProbes::Pending> pending;
+  const uint64_t drawn = probes->tiles_drawn();
+  auto images = probes->Render(asset, same, &pending);
+  ASSERT_TRUE(images.ok());
+  EXPECT_EQ(probes->tiles_drawn(), drawn) << "the importance render is the base: nothing to draw";
+  ASSERT_TRUE(probes->Commit(*pending).ok());
+  EXPECT_EQ(renderer.ImportanceBase(), nullptr);
 }
 
 TEST(IncrementalProbes, RefusesMapsThatDoNotFit) {

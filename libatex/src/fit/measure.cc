@@ -1,3 +1,4 @@
+// The plan's measurements (measure.h).
 #include "measure.h"
 
 #include <numeric>
@@ -8,10 +9,11 @@ namespace atex::fit::internal {
 
 Measurer::Measurer(ProbeRenderer* renderer, EncodeCache* chunks, MeasureTiming* timing, PruneMeasure prune)
     : renderer_(renderer), chunks_(chunks), timing_(timing), prune_(prune) {
-  if (CpuProbeRenderer* cpu = renderer->cpu_renderer(); cpu != nullptr) {
+  cpu_ = renderer->cpu_renderer();
+  if (cpu_ != nullptr) {
     std::vector<Camera> cameras;
     for (const Probe& p : renderer->probes()) cameras.push_back(p.camera);
-    incremental_ = std::make_unique<IncrementalProbes>(cpu, std::move(cameras));
+    incremental_ = cpu_->Incremental(cameras);
   }
 }
 
@@ -46,11 +48,20 @@ StatusOr<double> Measurer::Distortion(const Asset& decoded, const CandidateMap& 
 StatusOr<Measured> Measurer::Start(const Asset& input, const State& initial) {
   Stopwatch clock;
   if (incremental_) {
-    // The input is the first base; its images are the reference.
+    // The input is the first base; its images are the reference. When the importance was
+    // just measured on the same Gaussians, that render is the base already: nothing changes.
+    const size_t n = input.gaussians.size();
     CandidateMap all;
-    all.base_of.assign(input.gaussians.size(), kNoBase);
-    all.changed.resize(input.gaussians.size());
-    std::iota(all.changed.begin(), all.changed.end(), 0u);
+    const Asset* measured = cpu_->ImportanceBase();
+    if (measured != nullptr && measured->gaussians.size() == n) {
+      all.base_of.resize(n);
+      std::iota(all.base_of.begin(), all.base_of.end(), 0u);
+      all.changed = ChangedGaussians(*measured, input, all.base_of);
+    } else {
+      all.base_of.assign(n, kNoBase);
+      all.changed.resize(n);
+      std::iota(all.changed.begin(), all.changed.end(), 0u);
+    }
     std::shared_ptr<const IncrementalProbes::Pending> pending;
     ATEX_ASSIGN_OR_RETURN(reference_, incremental_->Render(input, all, &pending));
     ATEX_RETURN_IF_ERROR(incremental_->Commit(*pending));

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "atex/fit.h"
+#include "cpu_probes.h"
 #include "incremental_probes.h"
 #include "plan_state.h"
 
@@ -80,7 +81,8 @@ class Measurer {
   MeasureTiming* timing_;
   PruneMeasure prune_;
   std::vector<Image> reference_;
-  std::unique_ptr<IncrementalProbes> incremental_;  // CPU only
+  CpuProbeRenderer* cpu_ = nullptr;                 // CPU only
+  IncrementalProbes* incremental_ = nullptr;        // CPU only (cpu_'s)
   Asset current_;                                   // the current state's decode (CPU only)
   std::vector<uint32_t> current_kept_;
 };

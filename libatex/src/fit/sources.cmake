@@ -6,6 +6,7 @@ list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/candidate_map.cc
   ${CMAKE_CURRENT_LIST_DIR}/byte_size.cc
   ${CMAKE_CURRENT_LIST_DIR}/cpu_probes.cc
+  ${CMAKE_CURRENT_LIST_DIR}/incremental_base.cc
   ${CMAKE_CURRENT_LIST_DIR}/incremental_probes.cc
   ${CMAKE_CURRENT_LIST_DIR}/levers.cc
   ${CMAKE_CURRENT_LIST_DIR}/measure.cc

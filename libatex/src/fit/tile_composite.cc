@@ -1,3 +1,4 @@
+// Marked-pixel compositing (tile_composite.h).
 #include "tile_composite.h"
 
 #include <algorithm>
@@ -63,18 +64,21 @@ bool MarkPixels(const detail::CameraModel<float>& cam, int t, const detail::Spla
 
 void CompositePixels(const detail::CameraModel<float>& cam, int t, const TileList& list,
                      const detail::Vec3<float>& background, const uint8_t mask[kTilePixels], float* color,
-                     StopKey* stops) {
+                     StopKey* stops, float* weights) {
   const PixelBox tile = TileBox(cam, t);
   const detail::SplatParams<float>* splats = list.splats;
   const int count = list.count;
-  thread_local std::vector<int> near;  // the splats that can pass the skip test in one block
   const bool textured = count > 0 && splats[0].frame != nullptr;  // all or none of a render's splats are
   // Blocks of kBlock × kBlock pixels walk only the splats whose box meets the block: the
   // others fail the skip test at each of its pixels, where the reference loop passes them by.
-  constexpr int kBlock = 4;
-  for (int by = tile.y0; by < tile.y1; by += kBlock) {
-    for (int bx = tile.x0; bx < tile.x1; bx += kBlock) {
-      const PixelBox block{bx, std::min(bx + kBlock, tile.x1), by, std::min(by + kBlock, tile.y1)};
+  constexpr int kBlock = 4, kBlocks = detail::kTileSize / kBlock;
+  thread_local std::vector<int> near[kBlocks * kBlocks];  // per block of the tile; empty when unmarked
+  for (int by = 0; by < kBlocks; ++by) {
+    for (int bx = 0; bx < kBlocks; ++bx) {
+      std::vector<int>& list_of_block = near[by * kBlocks + bx];
+      list_of_block.clear();
+      const PixelBox block{tile.x0 + bx * kBlock, std::min(tile.x0 + (bx + 1) * kBlock, tile.x1),
+                           tile.y0 + by * kBlock, std::min(tile.y0 + (by + 1) * kBlock, tile.y1)};
       bool marked = false;
       for (int y = block.y0; y < block.y1 && !marked; ++y) {
         for (int x = block.x0; x < block.x1 && !marked; ++x) {
@@ -82,41 +86,42 @@ void CompositePixels(const detail::CameraModel<float>& cam, int t, const TileLis
         }
       }
       if (!marked) continue;
-      near.clear();
       for (int k = 0; k < count; ++k) {
         const PixelBox& b = list.reach[k].box;
-        if (b.x0 < block.x1 && block.x0 < b.x1 && b.y0 < block.y1 && block.y0 < b.y1) near.push_back(k);
+        if (b.x0 < block.x1 && block.x0 < b.x1 && b.y0 < block.y1 && block.y0 < b.y1) list_of_block.push_back(k);
       }
-      for (int y = block.y0; y < block.y1; ++y) {
-        for (int x = block.x0; x < block.x1; ++x) {
-          if (!mask[(y - tile.y0) * detail::kTileSize + (x - tile.x0)]) continue;
-          // As render_internal::RasterizeTile, less what only the backward pass reads.
-          const float px = float(x) + 0.5f, py = float(y) + 0.5f;
-          const detail::Vec3<float> ray =
-              textured ? detail::PixelRayDirection(cam, px, py) : detail::Vec3<float>{{0.0f, 0.0f, 1.0f}};
-          float transmittance = 1.0f;
-          detail::Vec3<float> c{{0.0f, 0.0f, 0.0f}};
-          StopKey stop = kNeverStopped;
-          for (int k : near) {
-            const auto& sp = splats[k];
-            const float power = detail::GaussianPower(sp.conic, px - sp.mean2d[0], py - sp.mean2d[1]);
-            if (power < list.reach[k].skip_below) continue;
-            const detail::SplatSample<float> s = detail::EvaluateSplat(sp, px, py, ray);
-            if (!s.contributes) continue;
-            const float next = transmittance * (1.0f - s.alpha);
-            if (next < float(detail::kMinTransmittance)) {
-              stop = StopKey{list.depths[k], list.indices[k]};
-              break;
-            }
-            const float w = s.alpha * transmittance;
-            for (int ch = 0; ch < 3; ++ch) c[ch] += s.color[ch] * w;
-            transmittance = next;
-          }
-          const size_t p = size_t(y) * size_t(cam.width) + size_t(x);
-          for (int ch = 0; ch < 3; ++ch) color[3 * p + ch] = c[ch] + transmittance * background[ch];
-          stops[p] = stop;
+    }
+  }
+  // Pixels in row-major order, as the reference (the order the weights are summed in).
+  for (int y = tile.y0; y < tile.y1; ++y) {
+    for (int x = tile.x0; x < tile.x1; ++x) {
+      if (!mask[(y - tile.y0) * detail::kTileSize + (x - tile.x0)]) continue;
+      // As render_internal::RasterizeTile, less what only the backward pass reads.
+      const float px = float(x) + 0.5f, py = float(y) + 0.5f;
+      const detail::Vec3<float> ray =
+          textured ? detail::PixelRayDirection(cam, px, py) : detail::Vec3<float>{{0.0f, 0.0f, 1.0f}};
+      float transmittance = 1.0f;
+      detail::Vec3<float> c{{0.0f, 0.0f, 0.0f}};
+      StopKey stop = kNeverStopped;
+      for (int k : near[((y - tile.y0) / kBlock) * kBlocks + (x - tile.x0) / kBlock]) {
+        const auto& sp = splats[k];
+        const float power = detail::GaussianPower(sp.conic, px - sp.mean2d[0], py - sp.mean2d[1]);
+        if (power < list.reach[k].skip_below) continue;
+        const detail::SplatSample<float> s = detail::EvaluateSplat(sp, px, py, ray);
+        if (!s.contributes) continue;
+        const float next = transmittance * (1.0f - s.alpha);
+        if (next < float(detail::kMinTransmittance)) {
+          stop = StopKey{list.depths[k], list.indices[k]};
+          break;
         }
+        const float w = s.alpha * transmittance;
+        for (int ch = 0; ch < 3; ++ch) c[ch] += s.color[ch] * w;
+        if (weights != nullptr) weights[k] += w;
+        transmittance = next;
       }
+      const size_t p = size_t(y) * size_t(cam.width) + size_t(x);
+      for (int ch = 0; ch < 3; ++ch) color[3 * p + ch] = c[ch] + transmittance * background[ch];
+      stops[p] = stop;
     }
   }
 }

@@ -70,8 +70,10 @@ struct TileList {
 
 // Composites the marked pixels of tile `t` from `list` over `background`, into `color`
 // ([height][width][3]) and `stops` ([height][width]); the image's other pixels are untouched.
+// With `weights` ([list.count], not null), adds each splat's blending weight over the pixels
+// in the reference's order (row-major), as render_internal::RasterizeTile sums them.
 void CompositePixels(const detail::CameraModel<float>& cam, int t, const TileList& list,
                      const detail::Vec3<float>& background, const uint8_t mask[kTilePixels], float* color,
-                     StopKey* stops);
+                     StopKey* stops, float* weights = nullptr);
 
 }  // namespace atex::fit::internal
