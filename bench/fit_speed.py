@@ -15,8 +15,10 @@ timed). Prints one table and writes the rows as JSON lines (--out).
         --data ../shared/data/dnerf_lego_tiny/tiny_dnerf_data.npz --repeats 1
 """
 import argparse
+import hashlib
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -33,13 +35,17 @@ def parse_size(text):
 
 
 def run_fit(binary, input_path, output, budget, fit_args):
+    """Wall seconds, CPU seconds (user + system, less sensitive to a shared machine) and the report."""
     cmd = [binary, "fit", input_path, output, "--budget", budget, "--json"] + fit_args
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.monotonic()
     proc = subprocess.run(cmd, capture_output=True, text=True)
     seconds = time.monotonic() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
-    return seconds, json.loads(proc.stdout)
+    return seconds, cpu, json.loads(proc.stdout)
 
 
 def verify(binary, path):
@@ -73,24 +79,35 @@ def main():
             for r in range(a.repeats):
                 for label, binary in (("old", a.old), ("new", a.new)):
                     out = os.path.join(tmp, f"{label}_{budget}_{r}.atex")
-                    seconds, report = run_fit(binary, a.input, out, budget, a.fit_args.split())
+                    load_before = os.getloadavg()[0]
+                    seconds, cpu, report = run_fit(binary, a.input, out, budget, a.fit_args.split())
+                    load_after = os.getloadavg()[0]
                     size = os.path.getsize(out)
+                    with open(out, "rb") as f:
+                        digest = hashlib.sha256(f.read()).hexdigest()
                     timing = report.get("plan_timing", [{}])[0]
                     row = {"binary": label, "path": binary, "budget": budget, "budget_bytes": parse_size(budget),
-                           "repeat": r, "wall_s": round(seconds, 3), "bytes": size,
+                           "repeat": r, "wall_s": round(seconds, 3), "cpu_s": round(cpu, 3), "bytes": size,
                            "within_budget": size <= parse_size(budget), "verify": verify(a.new, out),
                            "measurements": timing.get("measurements"),
                            "plan_s": timing.get("seconds", {}).get("total"),
                            "render_s": timing.get("seconds", {}).get("render"),
                            "gaussians": report["levers"]["gaussians"]["after"],
                            "moves": len(report.get("moves", [])),
-                           "proxy_psnr": report.get("estimated_psnr_vs_input")}
+                           "proxy_psnr": report.get("estimated_psnr_vs_input"),
+                           "sha256": digest, "load_1min_before": round(load_before, 2),
+                           "load_1min_after": round(load_after, 2)}
                     if a.data:
                         row["test_psnr"] = test_psnr(a.new, out, a.data)
                     rows.append(row)
                     print(json.dumps(row), file=sys.stderr)
-    header = ["binary", "budget", "wall_s", "plan_s", "render_s", "measurements", "bytes", "within_budget",
-              "verify", "gaussians", "moves", "proxy_psnr"] + (["test_psnr"] if a.data else [])
+    # The same budget's outputs of the two binaries: byte-identical or not.
+    for row in rows:
+        pair = [o for o in rows if o["budget"] == row["budget"] and o["repeat"] == row["repeat"]]
+        row["same_file_as_old"] = all(o["sha256"] == pair[0]["sha256"] for o in pair)
+    header = ["binary", "budget", "wall_s", "cpu_s", "plan_s", "render_s", "measurements", "bytes", "within_budget",
+              "verify", "gaussians", "moves", "proxy_psnr"] + (["test_psnr"] if a.data else []) + \
+             ["same_file_as_old", "load_1min_before", "load_1min_after"]
     print("| " + " | ".join(header) + " |")
     print("|" + "---|" * len(header))
     for row in rows:

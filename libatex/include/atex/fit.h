@@ -17,7 +17,11 @@
 // smallest increase of distortion per byte saved wins. Distortion is the mean
 // squared difference to the untrimmed asset's renders of the same probes: the
 // dataset's training views when one is given, else orbit views around the scene
-// (the documented proxy). The plan is deterministic (the same input, options and
+// (the documented proxy). On the CPU a candidate is rendered incrementally (only what
+// its move changed) and a prune candidate is measured range-stable: the current
+// asset less the removed Gaussians, leaving out the re-rounding of the survivors when
+// the prune moves a quantised stream's range (src/fit/measure.h; the bytes stay exact).
+// The plan is deterministic (the same input, options and
 // backend results give the same plan), so one plan serves every budget above its
 // floor.
 //
@@ -125,6 +129,9 @@ class ProbeRenderer {
     uint64_t tiles_drawn = 0, tiles_reused = 0; // (probe, tile) composited / taken from the cache
   };
   CacheCounts cache_counts() const;
+  // The CPU renderer (null on a GPU backend): the fitter renders its candidates
+  // incrementally through it (src/fit/incremental_probes.h).
+  internal::CpuProbeRenderer* cpu_renderer() { return cpu_.get(); }
 
  private:
   train::Backend* backend_;

@@ -2,6 +2,9 @@
 // unchanged positions reused.
 #include "cpu_probes.h"
 
+#include "atex/train/trainer.h"
+#include "incremental_probes.h"
+
 #include <algorithm>
 #include <cstring>
 #include <exception>
@@ -23,7 +26,9 @@ bool SameLinear(const Linear& a, const Linear& b) {
   return a.in == b.in && a.out == b.out && SameValues(a.weight, b.weight) && SameValues(a.bias, b.bias);
 }
 
-// Bitwise equality of two fields (the residuals are a function of the field's values).
+}  // namespace
+
+// The residuals are a function of the field's values.
 bool SameField(const DeformationField& a, const DeformationField& b) {
   const DeformationConfig &ca = a.config, &cb = b.config;
   if (ca.grid.channels != cb.grid.channels || ca.grid.base_resolution != cb.grid.base_resolution ||
@@ -51,6 +56,8 @@ bool SameField(const DeformationField& a, const DeformationField& b) {
   }
   return true;
 }
+
+namespace {
 
 uint32_t Bits(float x) {
   uint32_t b;
@@ -145,8 +152,15 @@ void CpuProbeRenderer::Evict(size_t gaussians) {
   last_used_ = std::move(kept_used);
 }
 
+Status CpuProbeRenderer::DeformCached(const DeformationField& field, const Gaussians& canonical,
+                                      const std::vector<double>& times, size_t asset_gaussians,
+                                      std::vector<Gaussians>* out) {
+  ++renders_;
+  return Deform(field, canonical, times, asset_gaussians, out);
+}
+
 Status CpuProbeRenderer::Deform(const DeformationField& field, const Gaussians& canonical,
-                                const std::vector<double>& times, std::vector<Gaussians>* out) {
+                                const std::vector<double>& times, size_t asset_gaussians, std::vector<Gaussians>* out) {
   ResetUnlessSame(field, times, canonical.sh_degree);
   const size_t n = canonical.size(), probes = times.size(), stride = static_cast<size_t>(stride_);
   const size_t per_slot = probes * stride;
@@ -210,7 +224,7 @@ Status CpuProbeRenderer::Deform(const DeformationField& field, const Gaussians& 
     }
     g.time_windows.clear();
   }
-  Evict(n);
+  Evict(std::max(n, asset_gaussians));
   return Status::Ok();
 }
 
@@ -225,7 +239,7 @@ StatusOr<CpuProbeRenderer::Prepared> CpuProbeRenderer::Prepare(const Asset& asse
   if (request.apply_deformation && asset.deformation.has_value()) {
     std::vector<double> times;
     for (const Camera& c : cameras) times.push_back(c.time);
-    ATEX_RETURN_IF_ERROR(Deform(*asset.deformation, asset.gaussians, times, &in.deformed));
+    ATEX_RETURN_IF_ERROR(Deform(*asset.deformation, asset.gaussians, times, asset.gaussians.size(), &in.deformed));
   }
   return in;
 }
@@ -248,8 +262,38 @@ StatusOr<std::vector<Image>> CpuProbeRenderer::Render(const Asset& asset, const 
   return images;
 }
 
+CpuProbeRenderer::CpuProbeRenderer() = default;
+CpuProbeRenderer::~CpuProbeRenderer() = default;
+
+IncrementalProbes* CpuProbeRenderer::Incremental(const std::vector<Camera>& cameras) {
+  bool same = incremental_ != nullptr && incremental_cameras_.size() == cameras.size();
+  for (size_t k = 0; same && k < cameras.size(); ++k) same = SameCamera(incremental_cameras_[k], cameras[k]);
+  if (!same) {
+    incremental_cameras_ = cameras;
+    incremental_ = std::make_unique<IncrementalProbes>(this, cameras);
+    importance_asset_.reset();
+  }
+  return incremental_.get();
+}
+
+const Asset* CpuProbeRenderer::ImportanceBase() const {
+  const bool current = importance_asset_ && incremental_ && incremental_->generation() == importance_generation_;
+  return current ? &*importance_asset_ : nullptr;
+}
+
 StatusOr<std::vector<float>> CpuProbeRenderer::Importance(const Asset& asset, const std::vector<Camera>& cameras,
                                                           const train::RenderRequest& request) {
+  const train::RenderRequest own = train::RenderRequestFor(asset);
+  if (request.active_sh_degree == own.active_sh_degree && request.apply_deformation == own.apply_deformation &&
+      request.use_textures == own.use_textures && request.background == own.background &&
+      request.near_plane == own.near_plane) {
+    IncrementalProbes* incremental = Incremental(cameras);
+    importance_asset_.reset();
+    ATEX_ASSIGN_OR_RETURN(std::vector<float> importance, incremental->RenderImportance(asset));
+    importance_asset_ = asset;
+    importance_generation_ = incremental->generation();
+    return importance;
+  }
   ATEX_ASSIGN_OR_RETURN(Prepared in, Prepare(asset, cameras, request));
   std::vector<float> importance(asset.gaussians.size(), 0.0f);
   for (size_t k = 0; k < cameras.size(); ++k) {

@@ -25,6 +25,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <unordered_map>
 #include <vector>
@@ -38,8 +39,16 @@
 
 namespace atex::fit::internal {
 
+// Bitwise equality of two deformation fields (configuration and every value).
+bool SameField(const DeformationField& a, const DeformationField& b);
+
+class IncrementalProbes;
+
 class CpuProbeRenderer {
  public:
+  CpuProbeRenderer();
+  ~CpuProbeRenderer();
+
   // Renders `asset` from `cameras` as train::Backend::Render would with `request`
   // (deformation at each camera's time, textures, background, SH degree).
   StatusOr<std::vector<Image>> Render(const Asset& asset, const std::vector<Camera>& cameras,
@@ -47,9 +56,29 @@ class CpuProbeRenderer {
 
   // Per Gaussian of `asset`, the blending weight accumulated over the renders from
   // `cameras` (render.h's importance), as EnsureImportance measures it; the deformations
-  // it computes stay cached for the renders that follow.
+  // it computes stay cached for the renders that follow. With the request of
+  // train::RenderRequestFor(asset), through Incremental(cameras) (the same values), whose
+  // base it leaves at `asset` (ImportanceBase).
   StatusOr<std::vector<float>> Importance(const Asset& asset, const std::vector<Camera>& cameras,
                                           const train::RenderRequest& request);
+
+  // The incremental renderer of `cameras` (incremental_probes.h), made on first use and
+  // again when the cameras change; it deforms through this renderer's cache.
+  IncrementalProbes* Incremental(const std::vector<Camera>& cameras);
+  // The asset Importance last rendered, while the incremental renderer's base is still
+  // that render (null otherwise): a plan of that asset starts from it.
+  const Asset* ImportanceBase() const;
+
+  // The Gaussians of `canonical` deformed to each time of `times` (out[t]), through the
+  // cache of residuals (IncrementalProbes deforms only the Gaussians a candidate changed).
+  // `asset_gaussians` sizes the cache's eviction (the Gaussians of the whole asset).
+  Status DeformCached(const DeformationField& field, const Gaussians& canonical, const std::vector<double>& times,
+                      size_t asset_gaussians, std::vector<Gaussians>* out);
+  // Tiles composited and kept by IncrementalProbes, added to the counters below.
+  void CountTiles(uint64_t drawn, uint64_t reused) {
+    tiles_drawn_ += drawn;
+    tiles_reused_ += reused;
+  }
 
   // Gaussians deformed (per probe set) and reused since construction.
   uint64_t deformed() const { return deformed_; }
@@ -71,7 +100,7 @@ class CpuProbeRenderer {
 
   // The deformed Gaussians of `canonical` at every time of `times`.
   Status Deform(const DeformationField& field, const Gaussians& canonical, const std::vector<double>& times,
-                std::vector<Gaussians>* out);
+                size_t asset_gaussians, std::vector<Gaussians>* out);
   // Forgets every entry unless the field, the times and the SH degree are the cached ones.
   void ResetUnlessSame(const DeformationField& field, const std::vector<double>& times, int sh_degree);
   // Drops the entries no render of the last few used, once the cache holds many more
@@ -114,6 +143,11 @@ class CpuProbeRenderer {
   std::vector<uint64_t> last_used_; // [slots] the render that last used the entry
   uint64_t renders_ = 0;
   uint64_t deformed_ = 0, reused_ = 0;
+
+  std::vector<Camera> incremental_cameras_;
+  std::unique_ptr<IncrementalProbes> incremental_;
+  std::optional<Asset> importance_asset_;
+  uint64_t importance_generation_ = 0;  // the incremental base it was rendered as
 };
 
 }  // namespace atex::fit::internal

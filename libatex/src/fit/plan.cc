@@ -9,40 +9,19 @@
 
 #include "atex/fit.h"
 #include "levers.h"
+#include "measure.h"
 #include "plan_state.h"
 #include "texture_shrink.h"
 
 namespace atex::fit {
 
+using internal::Candidate;
+using internal::Measured;
+using internal::Measurer;
 using internal::State;
 using internal::Stopwatch;
 
 namespace {
-
-struct Measured {
-  uint64_t bytes = 0;
-  double distortion = 0;
-};
-
-// Encodes (exact bytes; unchanged chunks come from the cache), decodes (exact stored
-// values) and renders the probes.
-StatusOr<Measured> Measure(const State& state, ProbeRenderer* renderer, const std::vector<Image>& reference,
-                           EncodeCache* cache, MeasureTiming* timing, Asset* decoded_out = nullptr) {
-  ++timing->measurements;
-  Stopwatch clock;
-  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(state.asset, state.write, cache));
-  timing->encode_seconds += clock.Lap();
-  ReadOptions read;
-  read.read_stats = false;
-  ATEX_ASSIGN_OR_RETURN(Asset decoded, DecodeAsset(bytes.data(), bytes.size(), read));
-  timing->decode_seconds += clock.Lap();
-  ATEX_ASSIGN_OR_RETURN(std::vector<Image> renders, renderer->Render(decoded));
-  timing->render_seconds += clock.Lap();
-  ATEX_ASSIGN_OR_RETURN(double mse, MeanSquaredError(renders, reference));
-  timing->distortion_seconds += clock.Lap();
-  if (decoded_out != nullptr) *decoded_out = std::move(decoded);
-  return Measured{bytes.size(), mse};
-}
 
 // The next move of every lever at `state` (prune and texture counts sized to the state).
 std::vector<Move> Proposals(const State& state, const PlanOptions& o) {
@@ -115,9 +94,8 @@ struct Cached {
 constexpr double kNoGain = std::numeric_limits<double>::infinity();
 struct Evaluated {
   Cached cost;
-  Measured measured;
-  State next;     // the state after the move (kept only for the best fresh evaluation)
-  Asset decoded;  // what a reader of `next` gets (for accept_more)
+  State next;           // the state after the move (kept only for the best fresh evaluation)
+  Candidate candidate;  // its measurement and decode
 };
 bool Better(const Cached& a, const Cached& b) {
   return a.ratio < b.ratio || (a.ratio == b.ratio && a.saving > b.saving);
@@ -155,18 +133,15 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   Plan plan;
   Stopwatch whole;
   plan.prune_order = ImportanceOrder(asset, options.seed);
-  // Reference: the untrimmed asset exactly as given (before any re-encoding).
-  Stopwatch reference_clock;
-  ATEX_ASSIGN_OR_RETURN(std::vector<Image> reference, renderer->Render(asset));
-  plan.timing.reference_seconds = reference_clock.Lap();
-
   State state{asset, options.write, {}};
   state.kept.resize(asset.gaussians.size());
   std::iota(state.kept.begin(), state.kept.end(), 0u);
   // Most candidates change one or two chunks of the current state; the others are
   // compressed once, not once per candidate.
   EncodeCache chunks;
-  ATEX_ASSIGN_OR_RETURN(Measured current, Measure(state, renderer, reference, &chunks, &plan.timing));
+  Measurer measurer(renderer, &chunks, &plan.timing);
+  // Reference: the untrimmed asset exactly as given (before any re-encoding).
+  ATEX_ASSIGN_OR_RETURN(Measured current, measurer.Start(asset, state));
   plan.initial_bytes = current.bytes;
   plan.initial_distortion = current.distortion;
 
@@ -182,16 +157,17 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
                                      options.min_grid_resolution);
     plan.timing.apply_seconds += clock.Lap();
     if (!applied.ok()) return e;  // a move the state cannot take (e.g. nothing left to halve) is not a move
-    auto measured = Measure(e.next, renderer, reference, &chunks, &plan.timing, &e.decoded);
-    if (!measured.ok()) {
+    auto candidate = measurer.Measure(e.next, proposal);
+    if (!candidate.ok()) {
       // A stream that an encoding cannot hold (f16 overflow) is simply not a move.
-      if (measured.status().code() == StatusCode::kOutOfRange) return e;
-      return measured.status();
+      if (candidate.status().code() == StatusCode::kOutOfRange) return e;
+      return candidate.status();
     }
-    e.measured = *measured;
-    if (measured->bytes >= current.bytes) return e;
-    const uint64_t saving = current.bytes - measured->bytes;
-    const double damage = std::max(0.0, measured->distortion - current.distortion);
+    e.candidate = std::move(*candidate);
+    const Measured& measured = e.candidate.measured;
+    if (measured.bytes >= current.bytes) return e;
+    const uint64_t saving = current.bytes - measured.bytes;
+    const double damage = std::max(0.0, measured.distortion - current.distortion);
     e.cost = Cached{damage / static_cast<double>(saving), saving, true};
     return e;
   };
@@ -235,15 +211,16 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
     }
     if (chosen == nullptr) break;  // no lever saves bytes any more
     Evaluated& taken = best_fresh->second;
+    ATEX_ASSIGN_OR_RETURN(Measured measured, measurer.Take(taken.next, taken.candidate));
     Move move = *chosen;
-    move.bytes_after = taken.measured.bytes;
-    move.distortion_after = taken.measured.distortion;
+    move.bytes_after = measured.bytes;
+    move.distortion_after = measured.distortion;
     if (options.accept_more) {
-      ATEX_ASSIGN_OR_RETURN(bool more, options.accept_more(taken.decoded, move));
+      ATEX_ASSIGN_OR_RETURN(bool more, options.accept_more(taken.candidate.decoded, move));
       if (!more) break;
     }
     state = std::move(taken.next);
-    current = taken.measured;
+    current = measured;
     plan.moves.push_back(move);
     for (auto& entry : cache) entry.second.fresh = false;
     cache.erase(KeyOf(move));  // its next step is a different move (new count, new encoding)

@@ -1,0 +1,112 @@
+// The plan's measurements (measure.h).
+#include "measure.h"
+
+#include <numeric>
+
+#include "cpu_probes.h"
+
+namespace atex::fit::internal {
+
+Measurer::Measurer(ProbeRenderer* renderer, EncodeCache* chunks, MeasureTiming* timing, PruneMeasure prune)
+    : renderer_(renderer), chunks_(chunks), timing_(timing), prune_(prune) {
+  cpu_ = renderer->cpu_renderer();
+  if (cpu_ != nullptr) {
+    std::vector<Camera> cameras;
+    for (const Probe& p : renderer->probes()) cameras.push_back(p.camera);
+    incremental_ = cpu_->Incremental(cameras);
+  }
+}
+
+Measurer::~Measurer() = default;
+
+StatusOr<Candidate> Measurer::Encode(const State& state) {
+  ++timing_->measurements;
+  Stopwatch clock;
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(state.asset, state.write, chunks_));
+  timing_->encode_seconds += clock.Lap();
+  ReadOptions read;
+  read.read_stats = false;
+  Candidate c;
+  ATEX_ASSIGN_OR_RETURN(c.decoded, DecodeAsset(bytes.data(), bytes.size(), read));
+  timing_->decode_seconds += clock.Lap();
+  c.measured.bytes = bytes.size();
+  return c;
+}
+
+StatusOr<double> Measurer::Distortion(const Asset& decoded, const CandidateMap& map,
+                                      std::shared_ptr<const IncrementalProbes::Pending>* pending) {
+  Stopwatch clock;
+  StatusOr<std::vector<Image>> renders =
+      incremental_ ? incremental_->Render(decoded, map, pending) : renderer_->Render(decoded);
+  if (!renders.ok()) return renders.status();
+  timing_->render_seconds += clock.Lap();
+  ATEX_ASSIGN_OR_RETURN(double mse, MeanSquaredError(*renders, reference_));
+  timing_->distortion_seconds += clock.Lap();
+  return mse;
+}
+
+StatusOr<Measured> Measurer::Start(const Asset& input, const State& initial) {
+  Stopwatch clock;
+  if (incremental_) {
+    // The input is the first base; its images are the reference. When the importance was
+    // just measured on the same Gaussians, that render is the base already: nothing changes.
+    const size_t n = input.gaussians.size();
+    CandidateMap all;
+    const Asset* measured = cpu_->ImportanceBase();
+    if (measured != nullptr && measured->gaussians.size() == n) {
+      all.base_of.resize(n);
+      std::iota(all.base_of.begin(), all.base_of.end(), 0u);
+      all.changed = ChangedGaussians(*measured, input, all.base_of);
+    } else {
+      all.base_of.assign(n, kNoBase);
+      all.changed.resize(n);
+      std::iota(all.changed.begin(), all.changed.end(), 0u);
+    }
+    std::shared_ptr<const IncrementalProbes::Pending> pending;
+    ATEX_ASSIGN_OR_RETURN(reference_, incremental_->Render(input, all, &pending));
+    ATEX_RETURN_IF_ERROR(incremental_->Commit(*pending));
+    current_ = input;
+    current_kept_.resize(input.gaussians.size());
+    std::iota(current_kept_.begin(), current_kept_.end(), 0u);
+  } else {
+    ATEX_ASSIGN_OR_RETURN(reference_, renderer_->Render(input));
+  }
+  timing_->reference_seconds += clock.Lap();
+  ATEX_ASSIGN_OR_RETURN(Candidate c, Encode(initial));
+  if (incremental_) {
+    c.map.base_of = BaseIndices(current_kept_, initial.kept);
+    c.map.changed = ChangedGaussians(current_, c.decoded, c.map.base_of);
+  }
+  ATEX_ASSIGN_OR_RETURN(c.measured.distortion, Distortion(c.decoded, c.map, &c.pending));
+  return Take(initial, c);
+}
+
+StatusOr<Candidate> Measurer::Measure(const State& next, const Move& move) {
+  ATEX_ASSIGN_OR_RETURN(Candidate c, Encode(next));
+  if (incremental_) {
+    c.map.base_of = BaseIndices(current_kept_, next.kept);
+    c.range_stable = prune_ != PruneMeasure::kExact && move.lever == Lever::kPrune;
+    if (!c.range_stable) c.map.changed = ChangedGaussians(current_, c.decoded, c.map.base_of);
+  }
+  ATEX_ASSIGN_OR_RETURN(c.measured.distortion, Distortion(c.decoded, c.map, &c.pending));
+  return c;
+}
+
+StatusOr<Measured> Measurer::Take(const State& next, const Candidate& candidate) {
+  Measured measured = candidate.measured;
+  if (!incremental_) return measured;
+  std::shared_ptr<const IncrementalProbes::Pending> pending = candidate.pending;
+  if (candidate.range_stable && prune_ == PruneMeasure::kRangeStableConfirmed) {
+    // Confirm: the exact decode, its requantised survivors included.
+    CandidateMap exact = candidate.map;
+    exact.changed = ChangedGaussians(current_, candidate.decoded, exact.base_of);
+    ++timing_->measurements;
+    ATEX_ASSIGN_OR_RETURN(measured.distortion, Distortion(candidate.decoded, exact, &pending));
+  }
+  ATEX_RETURN_IF_ERROR(incremental_->Commit(*pending));
+  current_ = candidate.decoded;
+  current_kept_ = next.kept;
+  return measured;
+}
+
+}  // namespace atex::fit::internal

@@ -1,0 +1,90 @@
+// The fitter's measurements of states (plan.cc): exact file bytes and probe distortion.
+// Not part of the public API.
+//
+// Every state is encoded (exact bytes; unchanged chunks come from the cache) and decoded
+// (exact stored values). On a GPU backend the decoded asset is rendered in full. On the
+// CPU the probes are rendered incrementally against the current state
+// (incremental_probes.h): a candidate projects and composites only what its move changed.
+//
+// Prune moves on the CPU are measured range-stable (PruneMeasure::kRangeStable): the
+// rendered asset is the current one less the removed Gaussians. A prune changes the
+// quantisation ranges of the q8/q16 streams (each stream keeps its min and max over the
+// Gaussians, and the least important Gaussians hold extremes), so its exact decode moves
+// every Gaussian by a fraction of a quantisation step, and an exact measurement renders
+// everything again (all tiles, and the deformation of every Gaussian when the positions'
+// range moved). The range-stable measurement charges a prune with its removals only, and
+// the rendered asset keeps the survivors' earlier values when it is taken: the moves
+// after it are measured by what they change of the exact decode (texels, encodings),
+// applied to the rendered asset. So the distortions the plan records leave out the
+// re-rounding of survivors after range changes, a noise of a fraction of a quantisation
+// step; the bytes are always exact (every candidate is encoded), and so is the output
+// (ApplyPlan encodes it). kRangeStableConfirmed renders each taken prune's exact decode
+// instead (the distortions are then the exact ones, as kExact's); on the lego sample all
+// three give the same plan (BENCHMARKS.md, issue 23).
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "atex/fit.h"
+#include "cpu_probes.h"
+#include "incremental_probes.h"
+#include "plan_state.h"
+
+namespace atex::fit::internal {
+
+struct Measured {
+  uint64_t bytes = 0;
+  double distortion = 0;
+};
+
+enum class PruneMeasure {
+  kExact,                 // the candidate's exact decode, as every other move
+  kRangeStable,           // range-stable (the default)
+  kRangeStableConfirmed,  // range-stable candidates; the taken one rendered from its exact decode
+};
+
+// A measured candidate, with what Measurer::Take needs.
+struct Candidate {
+  Measured measured;
+  Asset decoded;         // what a reader of the candidate gets
+  CandidateMap map;      // against the current state (CPU only)
+  bool range_stable = false;
+  std::shared_ptr<const IncrementalProbes::Pending> pending;  // CPU only
+};
+
+class Measurer {
+ public:
+  // `renderer` renders the probes; on the CPU (renderer->cpu_renderer() not null)
+  // incrementally. Timings and counts go to `timing`.
+  Measurer(ProbeRenderer* renderer, EncodeCache* chunks, MeasureTiming* timing,
+           PruneMeasure prune = PruneMeasure::kRangeStable);
+  ~Measurer();
+
+  // Renders the reference (`input` as given) and measures `initial`, which becomes the current state.
+  StatusOr<Measured> Start(const Asset& input, const State& initial);
+  // Measures `next`, the current state after `move`. Encoding errors come back as they are
+  // (kOutOfRange: a stream the encoding cannot hold).
+  StatusOr<Candidate> Measure(const State& next, const Move& move);
+  // The candidate (measured at the current state) becomes the current state; returns its
+  // measurement (with kRangeStableConfirmed, a range-stable one is rendered exactly first).
+  StatusOr<Measured> Take(const State& next, const Candidate& candidate);
+
+ private:
+  StatusOr<Candidate> Encode(const State& state);
+  StatusOr<double> Distortion(const Asset& decoded, const CandidateMap& map,
+                              std::shared_ptr<const IncrementalProbes::Pending>* pending);
+
+  ProbeRenderer* renderer_;
+  EncodeCache* chunks_;
+  MeasureTiming* timing_;
+  PruneMeasure prune_;
+  std::vector<Image> reference_;
+  CpuProbeRenderer* cpu_ = nullptr;                 // CPU only
+  IncrementalProbes* incremental_ = nullptr;        // CPU only (cpu_'s)
+  Asset current_;                                   // the current state's decode (CPU only)
+  std::vector<uint32_t> current_kept_;
+};
+
+}  // namespace atex::fit::internal
