@@ -28,13 +28,14 @@ std::vector<uint32_t> ChangedGaussians(const Asset& before, const Asset& after, 
   const size_t n = b.size();
   std::vector<uint32_t> changed;
   const bool comparable = a.sh_degree == b.sh_degree && before.textures.has_value() == after.textures.has_value() &&
-                          base_of.size() == n;
+                          a.has_time_windows() == b.has_time_windows() && base_of.size() == n;
   const size_t sh = 3 * static_cast<size_t>(b.sh_coeffs());
   for (size_t j = 0; j < n; ++j) {
     const uint32_t i = comparable ? base_of[j] : kNoBase;
     bool same = i != kNoBase && i < a.size() && SameSpan(a.positions, i, b.positions, j, 3) &&
                 SameSpan(a.rotations, i, b.rotations, j, 4) && SameSpan(a.log_scales, i, b.log_scales, j, 3) &&
-                SameSpan(a.opacity_logits, i, b.opacity_logits, j, 1) && SameSpan(a.sh, i, b.sh, j, sh);
+                SameSpan(a.opacity_logits, i, b.opacity_logits, j, 1) && SameSpan(a.sh, i, b.sh, j, sh) &&
+                (!b.has_time_windows() || SameSpan(a.time_windows, i, b.time_windows, j, 2));
     if (same && after.textures) {
       const TexturePool &ta = *before.textures, &tb = *after.textures;
       same = ta.heights[i] == tb.heights[j] && ta.widths[i] == tb.widths[j] && ta.axis_u[i] == tb.axis_u[j] &&

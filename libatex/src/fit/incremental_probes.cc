@@ -9,8 +9,8 @@
 #include "atex/detail/composite.h"
 #include "atex/render.h"
 #include "atex/train/trainer.h"
-#include "render/parallel.h"
 #include "incremental_probes_state.h"
+#include "render/parallel.h"
 #include "render/render_internal.h"
 #include "tile_composite.h"
 
@@ -24,6 +24,8 @@ void Subset(const Asset& asset, const std::vector<uint32_t>& indices, Gaussians*
   const Gaussians& a = asset.gaussians;
   const size_t sh = 3 * static_cast<size_t>(a.sh_coeffs());
   g->sh_degree = a.sh_degree;
+  g->time_windows.clear();
+  if (a.has_time_windows()) g->time_windows.assign(2, 0.0f);  // present, so that Resize sizes it
   g->Resize(indices.size());
   for (size_t k = 0; k < indices.size(); ++k) {
     const size_t i = indices[k];
@@ -32,6 +34,7 @@ void Subset(const Asset& asset, const std::vector<uint32_t>& indices, Gaussians*
     std::copy_n(a.log_scales.data() + 3 * i, 3, g->log_scales.data() + 3 * k);
     g->opacity_logits[k] = a.opacity_logits[i];
     std::copy_n(a.sh.data() + sh * i, sh, g->sh.data() + sh * k);
+    if (a.has_time_windows()) std::copy_n(a.time_windows.data() + 2 * i, 2, g->time_windows.data() + 2 * k);
   }
   t->reset();
   if (!asset.textures) return;
@@ -50,7 +53,9 @@ void Subset(const Asset& asset, const std::vector<uint32_t>& indices, Gaussians*
 }  // namespace
 
 IncrementalProbes::IncrementalProbes(CpuProbeRenderer* deformer, std::vector<Camera> cameras)
-    : deformer_(deformer), cameras_(std::move(cameras)), probes_(cameras_.size()) {
+    : deformer_(deformer),
+      cameras_(std::move(cameras)),
+      probes_(cameras_.size()) {
   for (const Camera& c : cameras_) times_.push_back(c.time);
 }
 
@@ -150,9 +155,9 @@ struct IncrementalProbes::Job {
   const CandidateMap& map;
   bool full;
   const std::vector<uint32_t>& changed;
-  std::vector<uint32_t> cand_of;   // [base] candidate index; kNoBase: removed
-  std::vector<uint8_t> stale;      // [base] removed or changed
-  std::vector<uint32_t> fresh_of;  // [candidate] index into `changed`; kNoBase: unchanged
+  std::vector<uint32_t> cand_of;          // [base] candidate index; kNoBase: removed
+  std::vector<uint8_t> stale;             // [base] removed or changed
+  std::vector<uint32_t> fresh_of;         // [candidate] index into `changed`; kNoBase: unchanged
   const TexturePool* textures = nullptr;  // of `changed`, null for an untextured render
   const Texels* fresh_texels = nullptr;
   detail::Vec3<float> background{};

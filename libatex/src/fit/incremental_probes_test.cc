@@ -86,7 +86,10 @@ std::vector<uint32_t> Iota(size_t n) {
 class Chain {
  public:
   Chain(const Asset& first, const std::vector<Camera>& cameras)
-      : cameras_(cameras), probes_(&deformer_, cameras), current_(first), kept_(Iota(first.gaussians.size())) {
+      : cameras_(cameras),
+        probes_(&deformer_, cameras),
+        current_(first),
+        kept_(Iota(first.gaussians.size())) {
     std::shared_ptr<const IncrementalProbes::Pending> pending;
     auto images = probes_.Render(first, AllNew(first.gaussians.size()), &pending);
     EXPECT_TRUE(images.ok()) << images.status().ToString();
@@ -187,6 +190,30 @@ TEST(IncrementalProbes, EqualFullRendersAcrossMoves) {
   Asset still = one;
   still.deformation.reset();
   chain.Step(still, kept2, "static");
+}
+
+// Time-local Gaussians (model.h time_windows): the subsets the incremental renders deform carry
+// the windows, and a changed window counts as a changed Gaussian.
+TEST(IncrementalProbes, EqualFullRendersWithTimeWindows) {
+  Asset asset = DynamicAsset(9, 400);
+  Gaussians& g = asset.gaussians;
+  g.time_windows.assign(2 * g.size(), 0.0f);
+  for (size_t i = 0; i < g.size(); i += 2) {  // half of them time-local, around times across [0, 1]
+    g.time_windows[2 * i] = float(i % 10) / 9.0f;
+    g.time_windows[2 * i + 1] = 3.0f;
+  }
+  ASSERT_TRUE(ValidateAsset(asset).ok());
+  Chain chain(asset, Cameras(asset));
+  std::vector<uint8_t> keep(g.size(), 1);
+  std::vector<uint32_t> kept;
+  for (size_t i = 0; i < keep.size(); ++i) {
+    keep[i] = i % 4 != 1;
+    if (keep[i]) kept.push_back(static_cast<uint32_t>(i));
+  }
+  chain.Step(SubsetGaussians(asset, keep), kept, "pruned, with windows");
+  Asset narrower = chain.current();
+  narrower.gaussians.time_windows[1] = 40.0f;  // one window narrowed: that Gaussian changes
+  EXPECT_GT(chain.Step(narrower, kept, "one window narrowed"), 0u);
 }
 
 TEST(IncrementalProbes, RangeStablePruneRendersTheBaseLessTheRemoved) {
