@@ -248,6 +248,9 @@ Status CrossCheckConfig(const TrainConfig& config, const Dataset& dataset, int s
                        "(its seeds come from every timestep's visual hull); '",
                        dataset.name(), "' has ", timed_views ? "no masks" : "no timesteps");
     }
+    if (s1.fast_objects.enabled && timed_views && dataset.timestep_count() < 2) {
+      warn("stage1.fast_objects.enabled with one timestep: nothing can be fast, no seeds are added");
+    }
     if (s1.fast_objects.enabled && s1.fine_iterations == 0) {
       warn(
           "stage1.fast_objects.enabled with stage1.fine_iterations=0: the seeds are added where the fine stage starts");

@@ -111,6 +111,7 @@ StatusOr<Stage1Start> InitialStage1State(const Dataset& data, const TrainConfig&
 
 StatusOr<std::string> AddFastObjectSeeds(const Dataset& data, const TrainConfig& config, Backend& backend) {
   const FastObjectsConfig& f = config.stage1.fast_objects;
+  if (data.timestep_count() < 2) return std::string("no fast-object seeds: the dataset has one timestep");
   InitOptions init;
   init.seed = config.seed;
   init.sh_degree = config.stage1.sh_degree;

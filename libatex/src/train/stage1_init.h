@@ -25,8 +25,9 @@ StatusOr<Stage1Start> InitialStage1State(const Dataset& data, const TrainConfig&
 // Appends the fast-object seeds of stage1.fast_objects (atex/transient_hull.h) to the model
 // that `backend` holds, with zero Adam moments; the Gaussians already there keep their
 // parameters and moments and get no window (k = 0). Called once, where the fine stage
-// starts. Returns the training log's line. Errors: TransientSeeds' (a dataset without
-// masks or timesteps), kInvalidArgument for a model with textures.
+// starts. Returns the training log's line. A dataset of one timestep, or without transient
+// foreground, leaves the model as it is (nothing can be fast). Errors: TransientSeeds' (a
+// dataset without masks or timesteps), kInvalidArgument for a model with textures.
 StatusOr<std::string> AddFastObjectSeeds(const Dataset& data, const TrainConfig& config, Backend& backend);
 
 }  // namespace atex::train
