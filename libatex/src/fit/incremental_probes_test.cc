@@ -15,6 +15,7 @@
 #include "fit/incremental_probes.h"
 #include "fit/levers.h"
 #include "fit/measure.h"
+#include "fit/probe_test_util.h"
 #include "fit/texture_shrink.h"
 
 namespace atex::fit {
@@ -46,26 +47,8 @@ std::vector<Camera> Cameras(const Asset& asset) {
   return cameras;
 }
 
-float MaxDifference(const std::vector<Image>& a, const std::vector<Image>& b) {
-  EXPECT_EQ(a.size(), b.size());
-  float worst = 0;
-  for (size_t k = 0; k < a.size() && k < b.size(); ++k) {
-    EXPECT_EQ(a[k].pixels.size(), b[k].pixels.size());
-    for (size_t p = 0; p < a[k].pixels.size() && p < b[k].pixels.size(); ++p) {
-      worst = std::max(worst, std::abs(a[k].pixels[p] - b[k].pixels[p]));
-    }
-  }
-  return worst;
-}
-
-double MeanValue(const std::vector<Image>& images) {
-  double sum = 0, count = 0;
-  for (const Image& i : images) {
-    sum += std::accumulate(i.pixels.begin(), i.pixels.end(), 0.0);
-    count += static_cast<double>(i.pixels.size());
-  }
-  return sum / count;
-}
+using testing::MaxDifference;
+using testing::MeanValue;
 
 CandidateMap AllNew(size_t n) {
   CandidateMap m;
