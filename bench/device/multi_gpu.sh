@@ -9,6 +9,8 @@
 # after the two-GPU gradient test (nccl_data_parallel_test).
 #
 #   bench/device/multi_gpu.sh OUT_DIR [FINE_STEPS=1500]
+# MULTI_GPU_PHASE: all (default), build (the build only), scale (the gradient test and (a) only).
+# ATEX_GPU_BUILD picks the build folder (common.sh): a NCCL build beside another job's uses its own.
 # MULTI_GPU_ARGS adds train options to every run (e.g. "--set stage1.init_method=auto" to skip the
 # stereo's seconds); the 2-GPU quality run writes its checkpoint at half of FINE_STEPS.
 #
@@ -22,6 +24,8 @@ mkdir -p "$out"
 BUILD_TREE_OPTIONS="-DATEX_NCCL=ON -DATEX_TESTS=ON -DATEX_BENCHMARKS=OFF" \
   build_tree . "$BUILD" "$(nproc)" atex_cli nccl_data_parallel_test > "$out/build.log" 2>&1 ||
   { tail -20 "$out/build.log"; exit 1; }
+phase=${MULTI_GPU_PHASE:-all}
+[ "$phase" = build ] && exit 0
 nvidia-smi --query-gpu=index,name,driver_version --format=csv,noheader | tee "$out/gpu.txt"
 # The GPUs' link (NVLink or PCIe) decides what the per-step all-reduce costs.
 nvidia-smi topo -m > "$out/topology.txt" 2>&1 || true
@@ -55,6 +59,21 @@ run() {  # NAME ARGS...
 # (a) scaling: batch per GPU fixed at 4, 300 fine steps.
 run scale_1gpu --gpus 0 --out "$out/scale_1gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=4
 run scale_2gpu --gpus 0,1 --out "$out/scale_2gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=8
+if [ "$phase" = scale ]; then
+  python3 - "$out" <<'PY' | tee "$out/multi_gpu.json"
+import json, os, sys
+out, rows = sys.argv[1], {}
+for name in ("scale_1gpu", "scale_2gpu"):
+    train = json.load(open(os.path.join(out, name + ".train.json")))
+    seconds, steps = train.get("seconds", {}), train.get("steps", {})
+    rows[name] = {"wall_s": float(open(os.path.join(out, name + ".wall")).read()),
+                  "fine_seconds": seconds.get("fine"), "fine_steps": steps.get("fine")}
+    rows[name]["fine_steps_per_s"] = rows[name]["fine_steps"] / rows[name]["fine_seconds"]
+print(json.dumps({"runs": rows, "scaling_2gpu_over_1gpu":
+                  rows["scale_2gpu"]["fine_steps_per_s"] / rows["scale_1gpu"]["fine_steps_per_s"]}, indent=1))
+PY
+  exit 0
+fi
 
 # (b) quality: 4 views per step in total; the 2-GPU run writes a checkpoint half-way for (c).
 run quality_1gpu --gpus 0 --out "$out/quality_1gpu.atex" --set stage1.fine_iterations="$fine" \

@@ -17,6 +17,8 @@
 #   init:    bench/configs/panoptic_init.json on all GPUs (out/init), with FPS (issue 20)
 #   stereo:  bench/configs/panoptic_stereo.json on all GPUs (out/stereo), no FPS (issue 20, third run;
 #            issue20.sh sheets times the models)
+#   textures: bench/configs/panoptic_textures.json on all GPUs (out/textures), no FPS (issue 20: the
+#            texture study on the new base)
 #   temporal: bench/configs/panoptic_temporal.json on all GPUs (out/temporal), no FPS (issue 20, fourth
 #            run; ONLY=REGEX narrows the config's cells: run_matrix's --only applies on top of its "only")
 # With .oldsrc present, `start` also builds it into build-old in the background, for a later
@@ -53,7 +55,7 @@ snapshot() {
     nvidia-smi --query-gpu=index,utilization.gpu,memory.used --format=csv,noheader || true
   } > "$out/progress.txt"
   tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ckpt' out/panoptic out/stress out/sweep out/same_time \
-    out/fast_raster out/seeds out/protocols out/base out/base2 out/init out/stereo out/temporal out/*.log out/*.rc \
+    out/fast_raster out/seeds out/protocols out/base out/base2 out/init out/stereo out/temporal out/textures out/*.log out/*.rc \
     2>/dev/null || true
 }
 
@@ -76,6 +78,7 @@ case $phase in
         base2) launch base2 bench/configs/panoptic_base2.json out/base2 "$gpus" --skip-fps ;;
         init) launch init bench/configs/panoptic_init.json out/init "$gpus" ;;
         stereo) launch stereo bench/configs/panoptic_stereo.json out/stereo "$gpus" --skip-fps ;;
+        textures) launch textures bench/configs/panoptic_textures.json out/textures "$gpus" --skip-fps ;;
         temporal) launch temporal bench/configs/panoptic_temporal.json out/temporal "$gpus" --skip-fps \
           ${ONLY:+--only "'$ONLY'"} ;;
         *) echo "unknown job $j" >&2; exit 2 ;;

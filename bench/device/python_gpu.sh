@@ -3,7 +3,9 @@
 # builds atex._atex with CUDA for that interpreter, runs the Python tests there (the GPU ones
 # included: CUDA renders, torch.from_dlpack without a copy), and measures the Python overhead
 # on a CUDA render of a Panoptic model at 1352x1014 against `atex fps` (target <= 5 %).
-#   bench/device/python_gpu.sh OUT_DIR   -> OUT_DIR/{gpu.txt,pytest.log,overhead.json}
+#   bench/device/python_gpu.sh OUT_DIR         -> OUT_DIR/{gpu.txt,pytest.log,overhead.json}
+#   bench/device/python_gpu.sh OUT_DIR build   only configure and build (e.g. in the background of
+#                                              another job, so that a later call only tests)
 # PY_GPU_MODEL: a Panoptic .atex to time (default: a short stage-1 model trained here, 6,000 fine steps).
 # PYTHON: the interpreter (default /opt/torch/.venv/bin/python3, else python3).
 #
@@ -37,6 +39,7 @@ fi
 cmake -S . -B "$PYBUILD" -DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES=90 -DATEX_PYTHON=ON \
   -DPython3_EXECUTABLE="$PY" -DATEX_BENCHMARKS=OFF "${pybind11_args[@]}" > "$out/configure.log"
 cmake --build "$PYBUILD" -j "$(nproc)" --target atex_python atex_cli 2>&1 | tail -2
+[ "${2:-}" = build ] && exit 0
 
 export PYTHONPATH=$PWD/$PYBUILD/python ATEX_DATA_DIR=$PWD/.devdata ATEX_SOURCE_DIR=$PWD ATEX_BINARY_DIR=$PWD/$PYBUILD
 export ATEX_REQUIRE_GPU=1
