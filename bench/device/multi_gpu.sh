@@ -29,6 +29,8 @@ phase=${MULTI_GPU_PHASE:-all}
 nvidia-smi --query-gpu=index,name,driver_version --format=csv,noheader | tee "$out/gpu.txt"
 # The GPUs' link (NVLink or PCIe) decides what the per-step all-reduce costs.
 nvidia-smi topo -m > "$out/topology.txt" 2>&1 || true
+head -6 "$out/topology.txt"
+ngpus=$(nvidia-smi --query-gpu=index --format=csv,noheader | wc -l)
 # First the two-GPU gradient test (kernels/tests/nccl_data_parallel_test.cc): seconds.
 "$(find "$BUILD" -name nccl_data_parallel_test -type f -perm -u+x | head -1)" 2>&1 | tee "$out/nccl_test.log" | tail -3
 # shellcheck disable=SC2206  # MULTI_GPU_ARGS is words
@@ -59,18 +61,35 @@ run() {  # NAME ARGS...
 # (a) scaling: batch per GPU fixed at 4, 300 fine steps.
 run scale_1gpu --gpus 0 --out "$out/scale_1gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=4
 run scale_2gpu --gpus 0,1 --out "$out/scale_2gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=8
+# On four or more GPUs, (a) also with 4 (batch 16) and, where there are 8, with 8 (batch 32).
+scales="scale_1gpu scale_2gpu"
+if [ "$ngpus" -ge 4 ]; then
+  run scale_4gpu --gpus 0,1,2,3 --out "$out/scale_4gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=16
+  scales="$scales scale_4gpu"
+fi
+if [ "$ngpus" -ge 8 ]; then
+  run scale_8gpu --gpus 0,1,2,3,4,5,6,7 --out "$out/scale_8gpu.atex" --set stage1.fine_iterations=300 \
+    --set stage1.batch_size=32
+  scales="$scales scale_8gpu"
+fi
 if [ "$phase" = scale ]; then
-  python3 - "$out" <<'PY' | tee "$out/multi_gpu.json"
+  python3 - "$out" $scales <<'PY' | tee "$out/multi_gpu.json"
 import json, os, sys
 out, rows = sys.argv[1], {}
-for name in ("scale_1gpu", "scale_2gpu"):
+for name in sys.argv[2:]:
     train = json.load(open(os.path.join(out, name + ".train.json")))
     seconds, steps = train.get("seconds", {}), train.get("steps", {})
     rows[name] = {"wall_s": float(open(os.path.join(out, name + ".wall")).read()),
                   "fine_seconds": seconds.get("fine"), "fine_steps": steps.get("fine")}
     rows[name]["fine_steps_per_s"] = rows[name]["fine_steps"] / rows[name]["fine_seconds"]
-print(json.dumps({"runs": rows, "scaling_2gpu_over_1gpu":
-                  rows["scale_2gpu"]["fine_steps_per_s"] / rows["scale_1gpu"]["fine_steps_per_s"]}, indent=1))
+# Step rate against one GPU; with the batch grown with the GPU count, views/s is that times the count.
+one = rows["scale_1gpu"]["fine_steps_per_s"]
+summary = {"runs": rows}
+for name in sys.argv[3:]:
+    gpus = int(name.split("_")[1].rstrip("gpu"))
+    summary["step_rate_%dgpu_over_1gpu" % gpus] = rows[name]["fine_steps_per_s"] / one
+    summary["views_per_s_%dgpu_over_1gpu" % gpus] = gpus * rows[name]["fine_steps_per_s"] / one
+print(json.dumps(summary, indent=1))
 PY
   exit 0
 fi
