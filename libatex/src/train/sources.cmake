@@ -9,6 +9,8 @@ list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/cpu_backend.cc
   ${CMAKE_CURRENT_LIST_DIR}/checkpoint.cc
   ${CMAKE_CURRENT_LIST_DIR}/trainer.cc
+  ${CMAKE_CURRENT_LIST_DIR}/training_records.cc
+  ${CMAKE_CURRENT_LIST_DIR}/training_step.cc
   ${CMAKE_CURRENT_LIST_DIR}/communicator.cc
   ${CMAKE_CURRENT_LIST_DIR}/data_parallel.cc
   ${CMAKE_CURRENT_LIST_DIR}/tcp_rendezvous.cc
