@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cstdint>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -59,6 +60,12 @@ class TrainingLoop {
   int Iterations(Phase phase) const;
   StepRequest MakeRequest(Phase phase, int step) const;
   Status RunPhase(Phase phase, int first_step);
+  // The step's views in `picks` order; images decoded on the host only for views whose target
+  // the backend does not hold yet (`images` keeps them alive for the step).
+  Status BatchViews(const std::vector<size_t>& picks, std::vector<std::shared_ptr<const Image>>* images,
+                    std::vector<TrainView>* views);
+  // Adds a phase's seconds and steps to the summary.
+  void AddPhaseTime(Phase phase, double seconds, int steps);
   // Densification (stage 1) and texture growth (stage 2) after step `step` (0-based).
   Status AfterStep(Phase phase, int step, size_t* gaussians);
   // Per-camera colour corrections (TrainConfig::camera_colour): fitted at stage-1 steps

@@ -106,18 +106,7 @@ Status TrainingLoop::RunPhase(Phase phase, int first_step) {
                   : schedule_.Views(total_steps_, batch, dp_.rank(), dp_.world_size());
     std::vector<std::shared_ptr<const Image>> images;
     std::vector<TrainView> views;
-    for (size_t index : picks) {
-      const View& v = train[index];
-      const uint64_t key = static_cast<uint64_t>(index) + 1;
-      const ColourAffine& colour = colours_.For(v.camera_id);
-      if (backend_.HasTarget(key)) {  // on the device already: no host decode
-        views.push_back({&v.camera, nullptr, key, colour});
-        continue;
-      }
-      ATEX_ASSIGN_OR_RETURN(auto image, data_.LoadImage(v));
-      images.push_back(image);
-      views.push_back({&v.camera, images.back().get(), key, colour});
-    }
+    ATEX_RETURN_IF_ERROR(BatchViews(picks, &images, &views));
     ATEX_ASSIGN_OR_RETURN(StepResult result, backend_.Step(request, views));
     if (!result.finite) {
       // Name the batch: a corrupt frame shows up as the view that every failing batch shares.
@@ -165,11 +154,7 @@ Status TrainingLoop::RunPhase(Phase phase, int first_step) {
       summary_.stopped_by_time_limit = true;
       Event(StrCat("time limit of ", options_.time_limit_seconds, " s reached at ", PhaseName(phase), " step ",
                    step + 1, " of ", total, ": stopping early"));
-      const double seconds = Seconds(start);
-      if (phase == Phase::kCoarse) summary_.coarse_seconds += seconds, summary_.coarse_steps += step + 1 - first_step;
-      if (phase == Phase::kFine) summary_.fine_seconds += seconds, summary_.fine_steps += step + 1 - first_step;
-      if (phase == Phase::kTextures)
-        summary_.textures_seconds += seconds, summary_.texture_steps += step + 1 - first_step;
+      AddPhaseTime(phase, Seconds(start), step + 1 - first_step);
       return Status::Ok();
     }
     if (config_.eval_every > 0 && (step + 1) % config_.eval_every == 0 && !last) {
@@ -182,11 +167,34 @@ Status TrainingLoop::RunPhase(Phase phase, int first_step) {
     }
   }
   ATEX_RETURN_IF_ERROR(dp_.CheckReplicasAgree(backend_, StrCat("the end of the ", PhaseName(phase), " phase")));
-  const double seconds = Seconds(start);
-  if (phase == Phase::kCoarse) summary_.coarse_seconds += seconds, summary_.coarse_steps += total - first_step;
-  if (phase == Phase::kFine) summary_.fine_seconds += seconds, summary_.fine_steps += total - first_step;
-  if (phase == Phase::kTextures) summary_.textures_seconds += seconds, summary_.texture_steps += total - first_step;
+  AddPhaseTime(phase, Seconds(start), total - first_step);
   return Status::Ok();
+}
+
+Status TrainingLoop::BatchViews(const std::vector<size_t>& picks, std::vector<std::shared_ptr<const Image>>* images,
+                                std::vector<TrainView>* views) {
+  const auto& train = data_.train_views();
+  for (size_t index : picks) {
+    const View& v = train[index];
+    const uint64_t key = static_cast<uint64_t>(index) + 1;
+    const ColourAffine& colour = colours_.For(v.camera_id);
+    if (backend_.HasTarget(key)) {  // on the device already: no host decode
+      views->push_back({&v.camera, nullptr, key, colour});
+      continue;
+    }
+    ATEX_ASSIGN_OR_RETURN(auto image, data_.LoadImage(v));
+    images->push_back(image);
+    views->push_back({&v.camera, images->back().get(), key, colour});
+  }
+  return Status::Ok();
+}
+
+void TrainingLoop::AddPhaseTime(Phase phase, double seconds, int steps) {
+  switch (phase) {
+    case Phase::kCoarse: summary_.coarse_seconds += seconds, summary_.coarse_steps += steps; break;
+    case Phase::kFine: summary_.fine_seconds += seconds, summary_.fine_steps += steps; break;
+    case Phase::kTextures: summary_.textures_seconds += seconds, summary_.texture_steps += steps; break;
+  }
 }
 
 Status TrainingLoop::AfterStep(Phase phase, int step, size_t* gaussians) {
