@@ -66,33 +66,95 @@ atex::StatusOr<atex::train::TrainConfig> BuildConfig(const TrainArgs& a, const a
   return config;
 }
 
+// Training progress on stderr: one bar per phase, events as lines between them.
+class PhaseProgress {
+ public:
+  bool Show(const atex::train::TrainProgress& p) {
+    if (!p.event.empty()) {
+      std::cerr << (bar_ && bar_->tty() ? "\n" : "") << "atex train: " << p.event << "\n";
+      return true;
+    }
+    if (p.phase != phase_) {
+      if (bar_) bar_->Finish();  // the previous phase's last update already drew its final state
+      bar_ = std::make_unique<atex::cli::Progress>(p.phase, p.total);
+      phase_ = p.phase;
+    }
+    char detail[160];
+    std::snprintf(detail, sizeof detail, "loss %.4f PSNR %.2f  %zu Gaussians", p.loss, p.psnr, p.gaussians);
+    bar_->Update(p.step, detail);
+    return true;
+  }
+  void Finish() {
+    if (bar_) bar_->Finish();
+  }
+
+ private:
+  std::unique_ptr<atex::cli::Progress> bar_;
+  std::string phase_;
+};
+
+// --print-config: the config a run would start from; with --data, the defaults of that
+// dataset's kind.
+int PrintConfig(const TrainArgs& a) {
+  using namespace atex;
+  const char* cmd = "train";
+  std::unique_ptr<Dataset> data;
+  if (!a.data.empty()) {
+    auto opened = cli::OpenDatasetArgs(a.data, a.dataset);
+    if (!opened.ok()) return cli::Fail(cmd, opened.status(), a.data);
+    data = std::move(*opened);
+  }
+  auto config = BuildConfig(a, data.get(), nullptr);
+  if (!config.ok()) return cli::Fail(cmd, config.status());
+  cli::PrintJson(train::ConfigToJson(*config));
+  return cli::kExitOk;
+}
+
+// The --stage value as train::kStage* flags; 0 when it is not 1, 2 or all.
+int ParseStages(const std::string& stage) {
+  if (stage == "1") return atex::train::kStage1;
+  if (stage == "2") return atex::train::kStage2;
+  if (stage == "all") return atex::train::kBothStages;
+  return 0;
+}
+
+// Writes the trained asset to --out, then the report: JSON with --json, else three lines.
+int WriteTrainOutputs(const TrainArgs& a, const atex::train::TrainSummary& summary, const nlohmann::json& background,
+                      const atex::cli::SelectedBackend& backend) {
+  using namespace atex;
+  const char* cmd = "train";
+  WriteOptions write;
+  const Status written = WriteAssetFile(a.out, summary.asset, write);
+  if (!written.ok()) return cli::Fail(cmd, written.WithContext(a.out), a.out);
+  nlohmann::json report = train::SummaryToJson(summary);
+  report["background"] = background;
+  report["output"] = a.out;
+  report["backend"] = backend.description;
+  if (a.profile) report["profile"] = backend.backend->Profile();
+  if (auto bytes = ReadFileBytes(a.out); bytes.ok()) report["model_bytes"] = bytes->size();
+  if (a.json) {
+    cli::PrintJson(report);
+    return cli::kExitOk;
+  }
+  std::printf("wrote %s: %zu Gaussians, %.2f MiB\n", a.out.c_str(), summary.asset.gaussians.size(),
+              report.value("model_bytes", 0.0) / (1024.0 * 1024.0));
+  std::printf("time: coarse %.1f s, fine %.1f s, textures %.1f s; peak device memory %.2f GiB\n",
+              summary.coarse_seconds, summary.fine_seconds, summary.textures_seconds,
+              summary.peak_memory_bytes / double(1ull << 30));
+  if (!summary.test.views.empty()) {
+    const auto& m = summary.test.mean;
+    std::printf("test views: PSNR %.3f dB  SSIM %.4f  DSSIM1 %.4f  DSSIM2 %.4f\n", m.psnr, m.ssim, m.dssim1, m.dssim2);
+  }
+  return cli::kExitOk;
+}
+
 int RunTrain(const TrainArgs& a) {
   using namespace atex;
   const char* cmd = "train";
-  if (a.print_config) {
-    // With --data, the defaults of that dataset's kind (as a run on it would start from).
-    std::unique_ptr<Dataset> data;
-    if (!a.data.empty()) {
-      auto opened = cli::OpenDatasetArgs(a.data, a.dataset);
-      if (!opened.ok()) return cli::Fail(cmd, opened.status(), a.data);
-      data = std::move(*opened);
-    }
-    auto config = BuildConfig(a, data.get(), nullptr);
-    if (!config.ok()) return cli::Fail(cmd, config.status());
-    cli::PrintJson(train::ConfigToJson(*config));
-    return cli::kExitOk;
-  }
+  if (a.print_config) return PrintConfig(a);
   if (a.data.empty() || a.out.empty()) return cli::Usage(cmd, "--data and --out are required (see --help)");
-  int stages = 0;
-  if (a.stage == "1") {
-    stages = train::kStage1;
-  } else if (a.stage == "2") {
-    stages = train::kStage2;
-  } else if (a.stage == "all") {
-    stages = train::kBothStages;
-  } else {
-    return cli::Usage(cmd, "--stage must be 1, 2 or all");
-  }
+  const int stages = ParseStages(a.stage);
+  if (stages == 0) return cli::Usage(cmd, "--stage must be 1, 2 or all");
   // Data parallelism (docs/multi_gpu.md): several GPUs make this process a launcher of one child
   // per GPU; a launcher's environment (RANK, WORLD_SIZE, ...) makes it one rank of the group.
   bool launched = false;
@@ -175,23 +237,8 @@ int RunTrain(const TrainArgs& a) {
   std::cerr << "atex train: " << (*dataset)->name() << ", " << (*dataset)->train_views().size() << " training and "
             << (*dataset)->test_views().size() << " test views; backend " << backend->description << "\n";
 
-  std::unique_ptr<cli::Progress> bar;
-  std::string bar_phase;
-  options.progress = [&](const train::TrainProgress& p) {
-    if (!p.event.empty()) {
-      std::cerr << (bar && bar->tty() ? "\n" : "") << "atex train: " << p.event << "\n";
-      return true;
-    }
-    if (p.phase != bar_phase) {
-      if (bar) bar->Finish();  // the previous phase's last update already drew its final state
-      bar = std::make_unique<cli::Progress>(p.phase, p.total);
-      bar_phase = p.phase;
-    }
-    char detail[160];
-    std::snprintf(detail, sizeof detail, "loss %.4f PSNR %.2f  %zu Gaussians", p.loss, p.psnr, p.gaussians);
-    bar->Update(p.step, detail);
-    return true;
-  };
+  PhaseProgress bar;
+  options.progress = [&bar](const train::TrainProgress& p) { return bar.Show(p); };
   const Asset* init = a.init.empty() ? nullptr : &initial;
   StatusOr<train::TrainSummary> summary = MakeError(StatusCode::kInternal, "no rank trained");
   if (a.ranks > 1) {
@@ -208,34 +255,10 @@ int RunTrain(const TrainArgs& a) {
   } else {
     summary = train::Train(**dataset, *backend->backend, options, init);
   }
-  if (bar) bar->Finish();
+  bar.Finish();
   if (!summary.ok()) return cli::Fail(cmd, summary.status());
   if (!root) return cli::kExitOk;  // rank 0 writes the asset and the report
-
-  WriteOptions write;
-  const Status written = WriteAssetFile(a.out, summary->asset, write);
-  if (!written.ok()) return cli::Fail(cmd, written.WithContext(a.out), a.out);
-  nlohmann::json report = train::SummaryToJson(*summary);
-  report["background"] = {{"rgb", config->background}, {"reason", background_reason}};
-  report["output"] = a.out;
-  report["backend"] = backend->description;
-  if (a.profile) report["profile"] = backend->backend->Profile();
-  if (auto bytes = ReadFileBytes(a.out); bytes.ok()) report["model_bytes"] = bytes->size();
-  if (a.json) {
-    cli::PrintJson(report);
-  } else {
-    std::printf("wrote %s: %zu Gaussians, %.2f MiB\n", a.out.c_str(), summary->asset.gaussians.size(),
-                report.value("model_bytes", 0.0) / (1024.0 * 1024.0));
-    std::printf("time: coarse %.1f s, fine %.1f s, textures %.1f s; peak device memory %.2f GiB\n",
-                summary->coarse_seconds, summary->fine_seconds, summary->textures_seconds,
-                summary->peak_memory_bytes / double(1ull << 30));
-    if (!summary->test.views.empty()) {
-      const auto& m = summary->test.mean;
-      std::printf("test views: PSNR %.3f dB  SSIM %.4f  DSSIM1 %.4f  DSSIM2 %.4f\n", m.psnr, m.ssim, m.dssim1,
-                  m.dssim2);
-    }
-  }
-  return cli::kExitOk;
+  return WriteTrainOutputs(a, *summary, {{"rgb", config->background}, {"reason", background_reason}}, *backend);
 }
 
 atex::cli::Runner SetupTrain(CLI::App& app) {
