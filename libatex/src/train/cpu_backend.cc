@@ -71,6 +71,78 @@ class CpuBackend final : public Backend {
     return Status::Ok();
   }
 
+  // One view of a step: its forward render, loss and backward pass; its gradients are appended
+  // to the per-view lists (`view_fields` only with deformation, `view_texels` only `textured`),
+  // its loss share to `photometric`, its PSNR and visible count to `result`. Returns false, with
+  // nothing appended, when the loss or dL/dimage is not finite (e.g. a corrupt target frame).
+  StatusOr<bool> StepView(const StepRequest& request, const TrainView& view, bool textured, float batch,
+                          const RenderSettings& settings, double* photometric, StepResult* result,
+                          std::vector<Gaussians>* view_grads, std::vector<std::vector<float>>* view_texels,
+                          std::vector<DeformationField>* view_fields) {
+    const size_t n = state_.gaussians.size();
+    const Camera& camera = *view.camera;
+    const Image& target = *view.target;
+    if (target.width != camera.width || target.height != camera.height || target.channels != 3) {
+      return MakeError(StatusCode::kInvalidArgument, "target image ", target.width, "x", target.height, "x",
+                       target.channels, " does not match camera ", camera.width, "x", camera.height);
+    }
+    Gaussians deformed;
+    DeformCache cache;
+    const Gaussians* rendered_gaussians = &state_.gaussians;
+    if (request.apply_deformation) {
+      ATEX_RETURN_IF_ERROR(DeformForward(*state_.deformation, state_.gaussians, camera.time, &deformed, &cache));
+      rendered_gaussians = &deformed;
+    }
+    const TexturePool* textures = textured ? &*state_.textures : nullptr;
+    ATEX_ASSIGN_OR_RETURN(RenderOutput out, RenderForward<float>(camera, *rendered_gaussians, textures, settings));
+    std::vector<float> grad_image(out.color.size());
+    // The camera's colour correction acts on a copy: the backward pass needs the render itself.
+    const size_t pixels = size_t(camera.width) * camera.height;
+    std::vector<float> corrected = view.colour.IsIdentity() ? std::vector<float>{} : out.color;
+    if (!corrected.empty()) view.colour.Apply(corrected.data(), pixels);
+    const std::vector<float>* compared = corrected.empty() ? &out.color : &corrected;
+    const double loss = PhotometricLoss<float>(compared->data(), target.pixels.data(), camera.width,
+                                               camera.height, request.lambda_dssim, grad_image.data());
+    if (!view.colour.IsIdentity()) view.colour.ScaleGradient(grad_image.data(), pixels);
+    *photometric += loss / batch;
+    for (float& g : grad_image) g /= batch;
+    // A NaN/Inf in the loss or dL/dimage (e.g. a corrupt target frame) is reported as a
+    // non-finite step, like one in the parameter gradients, so that the loop rolls back;
+    // RenderBackward would otherwise refuse the gradient with an error and end training.
+    // (With several ranks, the others still meet this rank in Step's reduction.)
+    if (!std::isfinite(loss) || !AllFinite(grad_image)) return false;
+    double sse = 0;
+    for (size_t k = 0; k < compared->size(); ++k) {
+      const double d = double((*compared)[k]) - target.pixels[k];
+      sse += d * d;
+    }
+    const double mse = sse / compared->size();
+    result->view_psnr.push_back(mse > 0 ? -10.0 * std::log10(mse) : 99.0);
+
+    RenderGradients rgrads;
+    ATEX_RETURN_IF_ERROR(RenderBackward<float>(camera, *rendered_gaussians, textures, settings, out,
+                                               grad_image.data(), nullptr, &rgrads));
+    if (request.apply_deformation) {
+      Gaussians view_grad;
+      view_grad.sh_degree = state_.gaussians.sh_degree;
+      view_grad.Resize(n);
+      DeformationField view_field = ZerosLike(*state_.deformation);
+      ATEX_RETURN_IF_ERROR(DeformBackward(*state_.deformation, state_.gaussians, camera.time, cache,
+                                          rgrads.gaussians, &view_field, &view_grad));
+      view_grads->push_back(std::move(view_grad));
+      view_fields->push_back(std::move(view_field));
+    } else {
+      view_grads->push_back(std::move(rgrads.gaussians));
+    }
+    if (textured) {
+      rgrads.texels.resize(state_.textures->texels.size(), 0.0f);
+      view_texels->push_back(std::move(rgrads.texels));
+    }
+    AccumulateStats(request, camera, *rendered_gaussians, out, rgrads, batch, textured);
+    for (size_t i = 0; i < n; ++i) result->visible += out.radius[i] > 0 ? 1 : 0;
+    return true;
+  }
+
   StatusOr<StepResult> Step(const StepRequest& request, std::span<const TrainView> views) override {
     if (views.empty()) return MakeError(StatusCode::kInvalidArgument, "CPU backend: empty batch");
     if (request.apply_deformation && !state_.deformation) {
@@ -98,69 +170,12 @@ class CpuBackend final : public Backend {
     double photometric = 0;
     bool nonfinite_image = false;
     for (const TrainView& view : views) {
-      const Camera& camera = *view.camera;
-      const Image& target = *view.target;
-      if (target.width != camera.width || target.height != camera.height || target.channels != 3) {
-        return MakeError(StatusCode::kInvalidArgument, "target image ", target.width, "x", target.height, "x",
-                         target.channels, " does not match camera ", camera.width, "x", camera.height);
-      }
-      Gaussians deformed;
-      DeformCache cache;
-      const Gaussians* rendered_gaussians = &state_.gaussians;
-      if (request.apply_deformation) {
-        ATEX_RETURN_IF_ERROR(DeformForward(*state_.deformation, state_.gaussians, camera.time, &deformed, &cache));
-        rendered_gaussians = &deformed;
-      }
-      const TexturePool* textures = textured ? &*state_.textures : nullptr;
-      ATEX_ASSIGN_OR_RETURN(RenderOutput out, RenderForward<float>(camera, *rendered_gaussians, textures, settings));
-      std::vector<float> grad_image(out.color.size());
-      // The camera's colour correction acts on a copy: the backward pass needs the render itself.
-      const size_t pixels = size_t(camera.width) * camera.height;
-      std::vector<float> corrected = view.colour.IsIdentity() ? std::vector<float>{} : out.color;
-      if (!corrected.empty()) view.colour.Apply(corrected.data(), pixels);
-      const std::vector<float>* compared = corrected.empty() ? &out.color : &corrected;
-      const double loss = PhotometricLoss<float>(compared->data(), target.pixels.data(), camera.width,
-                                                 camera.height, request.lambda_dssim, grad_image.data());
-      if (!view.colour.IsIdentity()) view.colour.ScaleGradient(grad_image.data(), pixels);
-      photometric += loss / batch;
-      for (float& g : grad_image) g /= batch;
-      // A NaN/Inf in the loss or dL/dimage (e.g. a corrupt target frame) is reported as a
-      // non-finite step, like one in the parameter gradients, so that the loop rolls back;
-      // RenderBackward would otherwise refuse the gradient with an error and end training.
-      // (With several ranks, the others still meet this rank in the reduction below.)
-      if (!std::isfinite(loss) || !AllFinite(grad_image)) {
+      ATEX_ASSIGN_OR_RETURN(const bool finite, StepView(request, view, textured, batch, settings, &photometric, &result,
+                                                        &view_grads, &view_texels, &view_fields));
+      if (!finite) {
         nonfinite_image = true;
         break;
       }
-      double sse = 0;
-      for (size_t k = 0; k < compared->size(); ++k) {
-        const double d = double((*compared)[k]) - target.pixels[k];
-        sse += d * d;
-      }
-      const double mse = sse / compared->size();
-      result.view_psnr.push_back(mse > 0 ? -10.0 * std::log10(mse) : 99.0);
-
-      RenderGradients rgrads;
-      ATEX_RETURN_IF_ERROR(RenderBackward<float>(camera, *rendered_gaussians, textures, settings, out,
-                                                 grad_image.data(), nullptr, &rgrads));
-      if (request.apply_deformation) {
-        Gaussians view_grad;
-        view_grad.sh_degree = state_.gaussians.sh_degree;
-        view_grad.Resize(n);
-        DeformationField view_field = ZerosLike(*state_.deformation);
-        ATEX_RETURN_IF_ERROR(DeformBackward(*state_.deformation, state_.gaussians, camera.time, cache,
-                                            rgrads.gaussians, &view_field, &view_grad));
-        view_grads.push_back(std::move(view_grad));
-        view_fields.push_back(std::move(view_field));
-      } else {
-        view_grads.push_back(std::move(rgrads.gaussians));
-      }
-      if (textured) {
-        rgrads.texels.resize(state_.textures->texels.size(), 0.0f);
-        view_texels.push_back(std::move(rgrads.texels));
-      }
-      AccumulateStats(request, camera, *rendered_gaussians, out, rgrads, batch, textured);
-      for (size_t i = 0; i < n; ++i) result.visible += out.radius[i] > 0 ? 1 : 0;
     }
     Gaussians grad;
     grad.sh_degree = state_.gaussians.sh_degree;
