@@ -12,14 +12,18 @@
 #   spark_0.075_vs_babylon / _vs_playcanvas   Spark with a 0.075 px^2 dilation, compared with
 #                       Babylon's and PlayCanvas's pictures instead of ours
 #   spark_0.3_vs_babylon / _vs_playcanvas     the same with the 3DGS 0.3 px^2
+#   playcanvas_3dgs     PlayCanvas with the page's ?kernel=3dgs (samples/web/playcanvas_3dgs.mjs)
+#                       on the lego (.glb, .ply; = the web test's kernel scene) and the F
+#   playcanvas_PARTS    the lego (.glb) with only some of its parts: dilation, falloff,
+#                       dilation+falloff, falloff+extent
 # Checks that fail in the experiments are expected (they are the tests' bounds, not these
 # settings'); the script fails only when a run produced no result. Prints a markdown table;
 # OUT_DIR (default out/web_players) keeps each run's JSON rows and lego pictures, and a strip
-# of the lego pictures (ours, Babylon.js, PlayCanvas, Spark 3DGS, Spark defaults) when ffmpeg
-# is there.
+# of the lego pictures (ours, Babylon.js, PlayCanvas, PlayCanvas 3DGS, Spark 3DGS, Spark
+# defaults) when ffmpeg is there.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
-case ${1:-} in -h|--help) sed -n 2,20p "$0"; exit 0 ;; esac
+case ${1:-} in -h|--help) sed -n 2,23p "$0"; exit 0 ;; esac
 fixture=$(realpath "${1:-build/web_fixture}")
 out=${2:-out/web_players}
 mkdir -p "$out"
@@ -50,6 +54,12 @@ for b in 0.075 0.3; do
   run "spark_${b}_vs_playcanvas" spark spz player_lego "$(blur "$b")" playcanvas_player_lego_glb.png
 done
 run spark_3dgs spark ply,spz letter_f,player_lego "" ""
+# (after the Spark runs: these overwrite PlayCanvas's lego picture in the fixture)
+run playcanvas_3dgs playcanvas glb,ply player_lego_3dgs_kernel "" ""
+run playcanvas_3dgs_letter_f playcanvas glb,ply letter_f kernel=3dgs ""
+for parts in dilation falloff dilation,falloff falloff,extent; do
+  run "playcanvas_${parts/,/+}" playcanvas glb player_lego "kernel=$parts" ""
+done
 
 node - "$out" <<'EOF_NODE'
 const fs = require('fs');
@@ -64,11 +74,13 @@ for (const file of fs.readdirSync(out).filter((n) => n.endsWith('.json')).sort()
 }
 EOF_NODE
 
-# The lego pictures side by side (ours untextured, Babylon.js, PlayCanvas, Spark 3DGS, Spark defaults).
+# The lego pictures side by side (ours untextured, Babylon.js, PlayCanvas, PlayCanvas with
+# ?kernel=3dgs, Spark 3DGS, Spark defaults).
 if command -v ffmpeg > /dev/null 2>&1 && [ -f "$fixture/player_lego_browser.png" ]; then
   ffmpeg -loglevel error -y -i "$fixture/player_lego_untextured.png" -i "$fixture/player_lego_browser.png" \
-    -i "$out/playcanvas_playcanvas_player_lego_glb.png" -i "$out/spark_3dgs_spark_player_lego_spz.png" \
-    -i "$out/spark_defaults_spark_player_lego_spz.png" \
-    -filter_complex "hstack=inputs=5,scale=iw*2:ih*2:flags=neighbor" "$out/players_lego_strip.png"
+    -i "$out/playcanvas_playcanvas_player_lego_glb.png" \
+    -i "$out/playcanvas_3dgs_playcanvas_player_lego_3dgs_kernel_glb.png" \
+    -i "$out/spark_3dgs_spark_player_lego_spz.png" -i "$out/spark_defaults_spark_player_lego_spz.png" \
+    -filter_complex "hstack=inputs=6,scale=iw*2:ih*2:flags=neighbor" "$out/players_lego_strip.png"
   echo "strip: $out/players_lego_strip.png" >&2
 fi

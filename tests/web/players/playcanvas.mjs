@@ -1,7 +1,10 @@
 // Shows one of our splat files in the unmodified PlayCanvas engine (npm playcanvas), under the
 // fixture's camera: a .glb through the engine's glTF container loader (its KHR_gaussian_splatting
-// extension), a .ply through its gsplat loader. Used by tests/web/player_render.mjs.
+// extension), a .ply through its gsplat loader; with ?kernel=3dgs through 3DGS's kernel (its
+// documented splat shader hooks, set by samples/web/playcanvas_3dgs.mjs). Used by
+// tests/web/player_render.mjs.
 import * as pc from 'playcanvas';
+import { useTrainingKernel } from '/playcanvas_3dgs.mjs';
 import { expose, fixtureCamera, params, rendererName } from './page_common.mjs';
 
 const canvas = document.getElementById('view');
@@ -31,6 +34,20 @@ async function main() {
   app.setCanvasFillMode(pc.FILLMODE_NONE);
   app.setCanvasResolution(pc.RESOLUTION_FIXED, width, height);
   app.graphicsDevice.maxPixelRatio = 1;
+  // ?kernel=3dgs draws splats as 3DGS training does (samples/web/playcanvas_3dgs.mjs: its 0.3 px²
+  // blur, its Gaussian not lowered, its 1/255 cut); ?kernel=PARTS (comma-separated: dilation,
+  // falloff, extent) only some of these. Experiments: ?dataformat=large|compact (the engine's
+  // work-buffer layout, app.scene.gsplat.dataFormat), ?alphaclip=A (its alphaClipForward).
+  let kernel = null;
+  if (params.get('kernel')) {
+    const all = ['dilation', 'falloff', 'extent'];
+    const parts = params.get('kernel') === '3dgs' ? all : params.get('kernel').split(',');
+    const unknown = parts.filter((p) => !all.includes(p));
+    if (unknown.length) throw new Error(`unknown kernel part(s) ${unknown.join(', ')} (known: 3dgs, ${all.join(', ')})`);
+    kernel = useTrainingKernel(app, Object.fromEntries(all.map((p) => [p, parts.includes(p)])));
+  }
+  if (params.get('dataformat')) app.scene.gsplat.dataFormat = params.get('dataformat');
+  if (params.get('alphaclip')) app.scene.gsplat.alphaClipForward = parseFloat(params.get('alphaclip'));
 
   const camera = new pc.Entity('camera');
   const bg = background || [0, 0, 0];
@@ -71,6 +88,7 @@ async function main() {
   status.textContent = '';
   return {
     player: `PlayCanvas ${pc.version}`,
+    kernel,
     renderer: rendererName(app.graphicsDevice.gl),
     splatResources: resources.length,
     splats: resources.reduce((n, r) => n + (r?.numSplats || 0), 0),
