@@ -45,6 +45,48 @@ void FillLinear(Random& r, Linear* layer, int in, int out) {
   for (float& b : layer->bias) b = r.Normal(0.0f, 0.01f);
 }
 
+// A random deformation field for the synthetic asset (`realistic_deformation`: D-NeRF's
+// grid and MLP sizes), drawn from `r` after the Gaussians and textures.
+DeformationField SyntheticDeformation(Random& r, const SyntheticAssetOptions& o, int sh_coeffs) {
+  const int k = sh_coeffs;
+  DeformationField d;
+  DeformationConfig& c = d.config;
+  if (o.realistic_deformation) {
+    c.grid.channels = 32;
+    c.grid.base_resolution = {64, 64, 64, 25};
+    c.mlp_width = 64;
+  } else {
+    c.grid.channels = 4;
+    c.grid.base_resolution = {8, 6, 5, 4};
+    c.mlp_width = 16;
+  }
+  c.grid.multires = {1, 2};
+  c.trunk_layers = 2;
+  c.heads = {true, true, true, o.sh_head, o.sh_head};
+  c.sh_coeffs = k;
+  c.aabb_lo = {-2.0f, -2.0f, -2.0f};
+  c.aabb_hi = {2.0f, 2.0f, 2.0f};
+  d.planes.resize(c.grid.scales());
+  for (int s = 0; s < c.grid.scales(); ++s) {
+    for (int p = 0; p < kNumHexPlanes; ++p) {
+      const bool time = kHexPlaneAxes[p][1] == 3;
+      std::vector<float>& plane = d.planes[s][p];
+      plane.resize(static_cast<size_t>(c.grid.channels) * c.grid.resolution(s, kHexPlaneAxes[p][0]) *
+                   c.grid.resolution(s, kHexPlaneAxes[p][1]));
+      for (float& v : plane) v = time ? 1.0f + r.Normal(0.0f, 0.01f) : r.Uniform(0.1f, 0.5f);
+    }
+  }
+  d.trunk.resize(c.trunk_layers);
+  for (int l = 0; l < c.trunk_layers; ++l)
+    FillLinear(r, &d.trunk[l], l == 0 ? c.grid.feature_dim() : c.mlp_width, c.mlp_width);
+  for (int h = 0; h < kNumDeformHeads; ++h) {
+    if (!c.heads[h]) continue;
+    FillLinear(r, &d.heads[h][0], c.mlp_width, c.mlp_width);
+    FillLinear(r, &d.heads[h][1], c.mlp_width, c.head_outputs(h));
+  }
+  return d;
+}
+
 }  // namespace
 
 Asset MakeSyntheticAsset(const SyntheticAssetOptions& o) {
@@ -98,44 +140,7 @@ Asset MakeSyntheticAsset(const SyntheticAssetOptions& o) {
     asset.textures = std::move(t);
   }
 
-  if (o.deformation) {
-    DeformationField d;
-    DeformationConfig& c = d.config;
-    if (o.realistic_deformation) {
-      c.grid.channels = 32;
-      c.grid.base_resolution = {64, 64, 64, 25};
-      c.mlp_width = 64;
-    } else {
-      c.grid.channels = 4;
-      c.grid.base_resolution = {8, 6, 5, 4};
-      c.mlp_width = 16;
-    }
-    c.grid.multires = {1, 2};
-    c.trunk_layers = 2;
-    c.heads = {true, true, true, o.sh_head, o.sh_head};
-    c.sh_coeffs = k;
-    c.aabb_lo = {-2.0f, -2.0f, -2.0f};
-    c.aabb_hi = {2.0f, 2.0f, 2.0f};
-    d.planes.resize(c.grid.scales());
-    for (int s = 0; s < c.grid.scales(); ++s) {
-      for (int p = 0; p < kNumHexPlanes; ++p) {
-        const bool time = kHexPlaneAxes[p][1] == 3;
-        std::vector<float>& plane = d.planes[s][p];
-        plane.resize(static_cast<size_t>(c.grid.channels) * c.grid.resolution(s, kHexPlaneAxes[p][0]) *
-                     c.grid.resolution(s, kHexPlaneAxes[p][1]));
-        for (float& v : plane) v = time ? 1.0f + r.Normal(0.0f, 0.01f) : r.Uniform(0.1f, 0.5f);
-      }
-    }
-    d.trunk.resize(c.trunk_layers);
-    for (int l = 0; l < c.trunk_layers; ++l)
-      FillLinear(r, &d.trunk[l], l == 0 ? c.grid.feature_dim() : c.mlp_width, c.mlp_width);
-    for (int h = 0; h < kNumDeformHeads; ++h) {
-      if (!c.heads[h]) continue;
-      FillLinear(r, &d.heads[h][0], c.mlp_width, c.mlp_width);
-      FillLinear(r, &d.heads[h][1], c.mlp_width, c.head_outputs(h));
-    }
-    asset.deformation = std::move(d);
-  }
+  if (o.deformation) asset.deformation = SyntheticDeformation(r, o, k);
 
   if (o.stats) {
     GaussianStats s;
