@@ -36,7 +36,7 @@ function(atex_data_tests)
     TIMEOUT 300)
   atex_add_test(NAME data_dataset_test
     SOURCES ${dir}/dataset_test.cc ${dir}/init_test.cc ${dir}/dataset_nerfstudio_test.cc ${dir}/dataset_colmap_test.cc
-            ${dir}/dataset_video_test.cc
+            ${dir}/dataset_video_test.cc ${dir}/dataset_dnerf_test.cc ${dir}/dataset_n3dv_test.cc
     LIBS atex
     TIMEOUT 600)
   # The ffmpeg command encodes the N3DV video test's .mp4 files (Debian package ffmpeg).
