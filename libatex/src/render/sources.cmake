@@ -15,6 +15,7 @@ function(atex_render_tests)
     ${dir}/render_test_util.cc
     ${dir}/detail_test.cc
     ${dir}/render_forward_test.cc
+    ${dir}/render_validation_test.cc
     ${dir}/render_gradient_test.cc
     ${dir}/texture_test.cc)
 
