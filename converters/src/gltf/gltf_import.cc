@@ -389,6 +389,9 @@ StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, cons
   auto md = MetadataFromJson(*metadata);
   if (!md.ok()) return md.status().WithContext("extras.atex.metadata");
   asset.metadata = std::move(md).value();
+  // Exported without its textures (--no-textures, or a foreign edit): the metadata describes the
+  // asset as it was, but what the file holds is untextured.
+  if (!asset.textures) asset.metadata.texture_mode = "none";
   ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
   return asset;
 }
