@@ -182,6 +182,8 @@ TEST(GltfHostile, ForgedQuantizedAccessorsAndFrames) {
   EXPECT_EQ(edit([&](json& d) { d["bufferViews"][accessor(d, "POSITION")["bufferView"].get<int>()]["byteStride"] = 4; }),
             StatusCode::kCorrupt);
   EXPECT_EQ(edit([](json& d) { d["nodes"][0]["scale"] = {1.0, 2.0, 1.0}; }), StatusCode::kUnsupported);
+  // The same in a float file (its node is only the upright turn): refused, not ignored.
+  EXPECT_EQ(DecodeEdited([](json& d) { d["nodes"][0]["scale"] = {1.0, 2.0, 1.0}; }), StatusCode::kUnsupported);
   EXPECT_EQ(edit([](json& d) { d["nodes"][0]["scale"] = {0.0, 0.0, 0.0}; }), StatusCode::kUnsupported);
   EXPECT_EQ(edit([](json& d) { d["nodes"][0]["scale"] = {-1.0, -1.0, -1.0}; }), StatusCode::kUnsupported);
   EXPECT_NE(edit([](json& d) { d["nodes"][0]["scale"] = {1e300, 1e300, 1e300}; }), StatusCode::kOk);

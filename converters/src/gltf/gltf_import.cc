@@ -214,12 +214,14 @@ Status ApplyQuantizationFrame(const gltf::Mat4& m, Gaussians& g) {
   for (int c = 0; c < 3; ++c) {
     offset[c] = (m[c * 4 + 0] * m[12] + m[c * 4 + 1] * m[13] + m[c * 4 + 2] * m[14]) / s;
   }
-  // A rotation-only node gives s and offset within rounding of 1 and 0: nothing to apply.
+  // A rotation-only node (every column of unit length, no offset, within rounding): nothing to apply.
   constexpr double kTiny = 1e-12;
-  if (std::abs(s - 1) <= kTiny && std::abs(offset[0]) <= kTiny && std::abs(offset[1]) <= kTiny &&
-      std::abs(offset[2]) <= kTiny) {
-    return Status::Ok();
+  bool rotation_only = std::abs(offset[0]) <= kTiny && std::abs(offset[1]) <= kTiny && std::abs(offset[2]) <= kTiny;
+  for (int c = 0; c < 3; ++c) {
+    const double length = std::sqrt(m[c * 4] * m[c * 4] + m[c * 4 + 1] * m[c * 4 + 1] + m[c * 4 + 2] * m[c * 4 + 2]);
+    rotation_only = rotation_only && std::abs(length - 1) <= kTiny;
   }
+  if (rotation_only) return Status::Ok();
   gltf::Mat4 frame = gltf::kIdentity;
   for (int k = 0; k < 3; ++k) frame[size_t(k * 5)] = s;
   for (int k = 0; k < 3; ++k) frame[size_t(12 + k)] = offset[k];
