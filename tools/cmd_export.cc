@@ -26,6 +26,7 @@ struct ExportArgs {
   std::string frames;
   bool meshopt = false;
   bool spz = false;
+  bool quantize = false;
   int meshopt_bits = 0;
   int rotation_bits = 16;
   bool no_textures = false, no_deformation = false, no_raw = false, no_color = false;
@@ -67,6 +68,7 @@ int RunExport(const ExportArgs& a) {
   atex::GltfExportOptions gltf;
   gltf.meshopt = a.meshopt;
   gltf.spz = a.spz;
+  gltf.quantize = a.quantize;
   gltf.meshopt_float_bits = a.meshopt_bits;
   gltf.meshopt_rotation_bits = a.rotation_bits;
   gltf.textures = !a.no_textures;
@@ -134,6 +136,7 @@ int RunExport(const ExportArgs& a) {
     summary["bytes"] = bytes;
     summary["meshopt"] = a.meshopt;
     summary["spz"] = a.spz;
+    summary["quantize"] = a.quantize;
   } else if (ext == ".splatv") {
     atex::SplatvOptions options;
     options.samples = a.samples;
@@ -191,6 +194,11 @@ atex::cli::Runner SetupExport(CLI::App& app) {
   app.add_flag("--spz", a->spz,
                "glTF: the base attributes as one SPZ stream (KHR_gaussian_splatting_compression_spz_2; lossy, "
                "~20 bytes per Gaussian; no raw parameters)");
+  app.add_flag("--quantize", a->quantize,
+               "glTF: KHR_mesh_quantization, normalized integer positions, rotations, scales and opacities "
+               "(lossy: 16-bit positions and scales in the scene's bounds, 8-bit rotations, 16-bit opacity; SH "
+               "stays float; no raw parameters); combines with --meshopt")
+      ->excludes("--spz");
   app.add_flag("--meshopt", a->meshopt,
                "glTF: EXT_meshopt_compression (int16 rotations; floats exact unless --meshopt-bits)");
   app.add_option("--meshopt-bits", a->meshopt_bits,

@@ -44,6 +44,17 @@ grep -q "\"gaussians\": $("$atex" info "$scene" --json | python3 -c 'import json
 if "$atex" export "$scene" "$work/zm.glb" --spz --meshopt > /dev/null 2>&1; then fail "--spz --meshopt was accepted"; fi
 ok "SPZ-in-glTF export (imports with every Gaussian, smaller than meshopt; not with --meshopt)"
 
+"$atex" export "$scene" "$work/k.glb" --quantize --json > "$work/k_export.json"
+grep -q '"quantize": true' "$work/k_export.json" || fail "export --quantize summary: $(cat "$work/k_export.json")"
+"$atex" import "$work/k.glb" "$work/k.atex" --json > "$work/k.json"
+grep -q "\"gaussians\": $("$atex" info "$scene" --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["gaussians"])')" \
+  "$work/k.json" || fail "--quantize import lost Gaussians: $(cat "$work/k.json")"
+[ "$(stat -c %s "$work/k.glb")" -lt "$(stat -c %s "$work/a.glb")" ] || fail "--quantize output is not smaller"
+"$atex" export "$scene" "$work/km.glb" --quantize --meshopt > /dev/null
+[ "$(stat -c %s "$work/km.glb")" -lt "$(stat -c %s "$work/k.glb")" ] || fail "--quantize --meshopt is not smaller than --quantize"
+if "$atex" export "$scene" "$work/kz.glb" --quantize --spz > /dev/null 2>&1; then fail "--quantize --spz was accepted"; fi
+ok "quantised export (imports with every Gaussian, smaller; with --meshopt smaller still; not with --spz)"
+
 "$atex" export "$scene" "$work/s.splatv" --samples 16 --json > "$work/s.json"
 grep -q '"position_rms_relative"' "$work/s.json" || fail ".splatv export reports no fit: $(cat "$work/s.json")"
 ok ".splatv export reports its fit"

@@ -3,7 +3,8 @@
 #   web_babylon_render  our .glb in unmodified Babylon.js in headless Chromium, compared with
 #                       libatex's reference renderer (synthetic "F" and real garden points);
 #                       the lego sample's cameras' up direction must come out as +y in
-#                       Babylon's world (the golden "upright" check)
+#                       Babylon's world (the golden "upright" check); the lego's quantised
+#                       export (--quantize, and with --meshopt) against the plain one's picture
 #   web_splatv_reader   our .splatv read by a re-implementation of splaTV's reader and shader
 #   web_playcanvas_render  our .glb and .ply in the unmodified PlayCanvas engine (npm playcanvas)
 #   web_spark_render    our .ply and .spz in three.js with Spark (npm three, @sparkjsdev/spark);
@@ -33,6 +34,10 @@ foreach(check gltf_validator babylon_render splatv_reader)
   set_tests_properties(web_${check} PROPERTIES FIXTURES_REQUIRED atex_web SKIP_RETURN_CODE 77 TIMEOUT 180
     LABELS web ENVIRONMENT "ATEX_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
 endforeach()
+
+# Babylon.js draws eight scenes, five of them the 91,490-Gaussian lego (about 25 s each on the
+# CPU machine's software WebGL2).
+set_tests_properties(web_babylon_render PROPERTIES TIMEOUT 420)
 
 # Third-party players in headless Chromium (player_render.mjs PLAYER FIXTURE_DIR); Spark is slow
 # on software WebGL2 (about a minute per lego picture on the CPU machine).

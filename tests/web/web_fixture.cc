@@ -10,7 +10,8 @@
 //                           recorded up axis, and the up direction of the dataset's cameras
 //                           (from the cameras, not the metadata) that a reader must show as up
 //   player_lego.*           the lego sample at a test view's time as .glb, .ply and .spz, the
-//                           view's camera and three references (our render, untextured, truth)
+//                           view's camera and three references (our render, untextured, truth);
+//                           player_lego_quantized*.glb: the same .glb with --quantize (and --meshopt)
 // Usage: atex_web_fixture OUT_DIR   (real data from $ATEX_DATA_DIR or the configured default)
 #include <algorithm>
 #include <cmath>
@@ -208,6 +209,13 @@ int main(int argc, char** argv) {
     o.spz = true;
     flavours.push_back({"spz_compressed.glb", o});
   }
+  {
+    atex::GltfExportOptions o;
+    o.quantize = true;
+    flavours.push_back({"quantized.glb", o});
+    o.meshopt = true, o.meshopt_float_bits = 12;
+    flavours.push_back({"quantized_meshopt.glb", o});
+  }
   flavours.push_back({"text_form.gltf", {}});
   {
     atex::Status s = atex::WriteAssetFile((out / "moving.atex").string(), moving);
@@ -361,6 +369,11 @@ int main(int argc, char** argv) {
     atex::GltfExportOptions options;
     options.time = view.camera.time;
     if (s.ok()) s = atex::WriteGltfFile((out / "player_lego.glb").string(), *sample, options);
+    // The same as `atex export --quantize [--meshopt]` writes it (KHR_mesh_quantization).
+    options.quantize = true;
+    if (s.ok()) s = atex::WriteGltfFile((out / "player_lego_quantized.glb").string(), *sample, options);
+    options.meshopt = true;
+    if (s.ok()) s = atex::WriteGltfFile((out / "player_lego_quantized_meshopt.glb").string(), *sample, options);
     // `atex convert --time T` to .ply and .spz v3 (the world turned to each format's up axis).
     atex::ConvertOptions at_time = SpzV3();
     at_time.time = view.camera.time;
@@ -384,6 +397,9 @@ int main(int argc, char** argv) {
                                {"reference", "player_lego_untextured.png"}, {"atex", "player_lego_atex.png"},
                                {"truth", "player_lego_truth.png"}, {"time", view.camera.time},
                                {"gaussians", sample->gaussians.size()}};
+    manifest["player_lego_quantized"] = {{"glb", "player_lego_quantized.glb"},
+                                         {"glb_meshopt", "player_lego_quantized_meshopt.glb"}};
+    manifest["validator"].push_back("player_lego_quantized.glb");
   }
 
   if (atex::Status s = WriteText(out / "manifest.json", manifest.dump(2)); !s.ok()) return Fail("manifest", s);

@@ -14,6 +14,7 @@
 #include "gltf/gltf_container.h"
 #include "gltf/gltf_json_util.h"
 #include "gltf/gltf_names.h"
+#include "gltf/gltf_quantize.h"
 #include "gltf/gltf_spz.h"
 #include "gltf/gltf_writer.h"
 
@@ -62,6 +63,7 @@ class SplatExporter {
 
   const GltfExportOptions& options_;
   GltfWriter writer_;
+  gltf::PositionFrame position_frame_;  // --quantize: the node's dequantisation (identity otherwise)
 };
 
 StatusOr<int> SplatExporter::FloatView(const float* data, size_t count, size_t components, bool vertex, bool lossy,
@@ -114,51 +116,60 @@ StatusOr<int> SplatExporter::FloatAccessor(const std::vector<float>& data, size_
   return writer_.AddAccessor(view, 0, gltf::kComponentFloat, false, count, type, min, max);
 }
 
+// With --quantize, POSITION, SCALE and OPACITY are normalized integers in the node's frame
+// (gltf_quantize.h; Build puts the frame on the node) and ROTATION int8 unless meshopt's filter
+// packs it; otherwise floats. Views and accessors come in the same order either way.
 Status SplatExporter::AddBase(const Gaussians& g, json& attributes) {
   const size_t n = g.size();
-  ATEX_ASSIGN_OR_RETURN(int position, FloatAccessor(g.positions, n, 3, "VEC3", true, lossy(), true));
-  attributes[gltf::kAttrPosition] = position;
-
-  // Unit quaternion in glTF order (x, y, z, w); a zero quaternion (which no renderer
-  // can use) becomes the identity.
-  std::vector<float> xyzw(n * 4);  // [N][4]
-  for (size_t i = 0; i < n; ++i) {
-    const float* q = &g.rotations[i * 4];  // (w, x, y, z)
-    const double norm =
-        std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
-    float* out = &xyzw[i * 4];
-    if (norm > 0) {
-      out[0] = float(q[1] / norm), out[1] = float(q[2] / norm), out[2] = float(q[3] / norm),
-      out[3] = float(q[0] / norm);
-    } else {
-      out[0] = 0, out[1] = 0, out[2] = 0, out[3] = 1;
-    }
+  std::vector<float> opacities(n);  // [N] in [0, 1]
+  for (size_t i = 0; i < n; ++i) opacities[i] = float(Sigmoid(g.opacity_logits[i]));
+  gltf::QuantizedGeometry q;
+  if (options_.quantize) {
+    ATEX_ASSIGN_OR_RETURN(q, gltf::QuantizeGeometry(g, opacities));
+    ATEX_ASSIGN_OR_RETURN(int view, writer_.AddView({q.positions.data(), n, 8, true, MeshoptFilter::kNone}));
+    attributes[gltf::kAttrPosition] =
+        writer_.AddAccessor(view, 0, gltf::kComponentShort, true, n, "VEC3", q.position_min, q.position_max);
+    position_frame_ = q.frame;
+    writer_.UseExtension(gltf::kKhrMeshQuantization, true);
+  } else {
+    ATEX_ASSIGN_OR_RETURN(int position, FloatAccessor(g.positions, n, 3, "VEC3", true, lossy(), true));
+    attributes[gltf::kAttrPosition] = position;
   }
+
+  const std::vector<float> xyzw = gltf::UnitQuaternionsXyzw(g);  // [N][4]
   if (options_.meshopt) {
     ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> packed,
                           gltf::EncodeQuaternion(xyzw.data(), n, options_.meshopt_rotation_bits));
     gltf::ViewSpec spec{packed.data(), n, 8, true, MeshoptFilter::kQuaternion};
     ATEX_ASSIGN_OR_RETURN(int view, writer_.AddView(spec));
     attributes[gltf::kAttrRotation] = writer_.AddAccessor(view, 0, gltf::kComponentShort, true, n, "VEC4");
+  } else if (options_.quantize) {
+    const std::vector<uint8_t> packed = gltf::QuantizeRotations(xyzw);
+    ATEX_ASSIGN_OR_RETURN(int view, writer_.AddView({packed.data(), n, 4, true, MeshoptFilter::kNone}));
+    attributes[gltf::kAttrRotation] = writer_.AddAccessor(view, 0, gltf::kComponentByte, true, n, "VEC4");
   } else {
     ATEX_ASSIGN_OR_RETURN(int rotation, FloatAccessor(xyzw, n, 4, "VEC4", true, false, false));
     attributes[gltf::kAttrRotation] = rotation;
   }
 
-  // [N][3] linear, kept positive and finite in float (a log-scale of -200 underflows to 0,
-  // which the extension forbids; the raw attributes keep the exact value).
-  std::vector<float> scales(n * 3);
-  for (size_t i = 0; i < n * 3; ++i) {
-    scales[i] = float(std::clamp(std::exp(double(g.log_scales[i])), double(std::numeric_limits<float>::min()),
-                                 double(std::numeric_limits<float>::max())));
+  if (options_.quantize) {
+    ATEX_ASSIGN_OR_RETURN(int sview, writer_.AddView({q.scales.data(), n, 8, true, MeshoptFilter::kNone}));
+    attributes[gltf::kAttrScale] = writer_.AddAccessor(sview, 0, gltf::kComponentShort, true, n, "VEC3");
+    ATEX_ASSIGN_OR_RETURN(int oview, writer_.AddView({q.opacities.data(), n, 4, true, MeshoptFilter::kNone}));
+    attributes[gltf::kAttrOpacity] = writer_.AddAccessor(oview, 0, gltf::kComponentUnsignedShort, true, n, "SCALAR");
+  } else {
+    // [N][3] linear, kept positive and finite in float (a log-scale of -200 underflows to 0,
+    // which the extension forbids; the raw attributes keep the exact value).
+    std::vector<float> scales(n * 3);
+    for (size_t i = 0; i < n * 3; ++i) {
+      scales[i] = float(std::clamp(std::exp(double(g.log_scales[i])), double(std::numeric_limits<float>::min()),
+                                   double(std::numeric_limits<float>::max())));
+    }
+    ATEX_ASSIGN_OR_RETURN(int scale, FloatAccessor(scales, n, 3, "VEC3", true, lossy(), false));
+    attributes[gltf::kAttrScale] = scale;
+    ATEX_ASSIGN_OR_RETURN(int opacity, FloatAccessor(opacities, n, 1, "SCALAR", true, lossy(), false));
+    attributes[gltf::kAttrOpacity] = opacity;
   }
-  ATEX_ASSIGN_OR_RETURN(int scale, FloatAccessor(scales, n, 3, "VEC3", true, lossy(), false));
-  attributes[gltf::kAttrScale] = scale;
-
-  std::vector<float> opacities(n);  // [N] in [0, 1]
-  for (size_t i = 0; i < n; ++i) opacities[i] = float(Sigmoid(g.opacity_logits[i]));
-  ATEX_ASSIGN_OR_RETURN(int opacity, FloatAccessor(opacities, n, 1, "SCALAR", true, lossy(), false));
-  attributes[gltf::kAttrOpacity] = opacity;
 
   // SH: one interleaved view [N][K][3] (our layout), one VEC3 accessor per coefficient.
   const size_t k_count = size_t(g.sh_coeffs());
@@ -251,7 +262,7 @@ Status SplatExporter::AddDeformation(const Gaussians& g, const DeformationField*
                                      json& khr_extensions) {
   const size_t n = g.size();
   json ext = json::object();
-  if (options_.raw_parameters && !options_.spz) {
+  if (options_.raw_parameters && !options_.spz && !options_.quantize) {
     std::vector<float> raw_rotation(n * 4);  // [N][4] (x, y, z, w), unnormalised, bit-exact
     for (size_t i = 0; i < n; ++i) {
       raw_rotation[i * 4 + 0] = g.rotations[i * 4 + 1];
@@ -310,7 +321,7 @@ Status SplatExporter::AddDeformation(const Gaussians& g, const DeformationField*
                     {"heads", heads},
                     {"shCoefficients", c.sh_coeffs}};
   }
-  if ((!options_.raw_parameters || options_.spz) && field == nullptr) return Status::Ok();
+  if ((!options_.raw_parameters || options_.spz || options_.quantize) && field == nullptr) return Status::Ok();
   khr_extensions[gltf::kAtexDeformation] = ext;
   writer_.UseExtension(gltf::kAtexDeformation, false);
   return Status::Ok();
@@ -327,6 +338,11 @@ Status SplatExporter::Build(const Asset& asset) {
     return MakeError(StatusCode::kInvalidArgument,
                      "glTF export: SPZ compression and EXT_meshopt_compression exclude "
                      "each other (the SPZ stream is already compressed); choose one");
+  }
+  if (options_.spz && options_.quantize) {
+    return MakeError(StatusCode::kInvalidArgument,
+                     "glTF export: SPZ compression and quantised accessors exclude each other (the SPZ stream "
+                     "replaces the accessors' data); choose one");
   }
   if (options_.meshopt && !gltf::MeshoptAvailable()) {
     return MakeError(StatusCode::kUnsupported, "EXT_meshopt_compression needs meshoptimizer, which this build lacks");
@@ -394,6 +410,17 @@ Status SplatExporter::Build(const Asset& asset) {
   json node = {{"name", "atex"}, {"mesh", 0}};
   const std::array<double, 4> rotation = GltfRootRotation(up);
   if (rotation != std::array<double, 4>{0, 0, 0, 1}) node["rotation"] = rotation;
+  if (options_.quantize) {
+    // node = T * R * S: world = R * (center + s * q), so T = R * center (R's entries are 0 and +-1: exact).
+    const std::array<double, 9> r = UpRotationMatrix(up);
+    const auto& c = position_frame_.center;
+    json translation = json::array();
+    for (int row = 0; row < 3; ++row)
+      translation.push_back(float(r[row * 3] * c[0] + r[row * 3 + 1] * c[1] + r[row * 3 + 2] * c[2]));
+    node["translation"] = translation;
+    const double s = position_frame_.scale;
+    node["scale"] = json::array({s, s, s});
+  }
   doc["nodes"] = json::array({node});
   doc["scenes"] = json::array({{{"nodes", json::array({0})}}});
   doc["scene"] = 0;

@@ -19,10 +19,11 @@ namespace {
 using nlohmann::json;
 using testing::GlbParts;
 
-std::vector<uint8_t> ValidGlb(bool meshopt = false) {
+std::vector<uint8_t> ValidGlb(bool meshopt = false, bool quantize = false) {
   const Asset asset = testing::MakeTestAsset({.count = 12, .sh_degree = 1});
   GltfExportOptions options;
   options.meshopt = meshopt;
+  options.quantize = quantize;
   auto glb = EncodeGlb(asset, options);
   EXPECT_TRUE(glb.ok()) << glb.status().ToString();
   return *glb;
@@ -35,8 +36,8 @@ StatusCode Decode(const std::vector<uint8_t>& bytes) {
 }
 
 // Applies `edit` to the JSON of a valid GLB and decodes the result.
-StatusCode DecodeEdited(const std::function<void(json&)>& edit, bool meshopt = false) {
-  GlbParts parts = testing::SplitGlb(ValidGlb(meshopt));
+StatusCode DecodeEdited(const std::function<void(json&)>& edit, bool meshopt = false, bool quantize = false) {
+  GlbParts parts = testing::SplitGlb(ValidGlb(meshopt, quantize));
   edit(parts.json);
   return Decode(testing::JoinGlb(parts.json, parts.bin));
 }
@@ -46,20 +47,23 @@ int AttributeAccessor(const json& doc, const char* name) {
 }
 
 TEST(GltfHostile, EveryTruncationFailsCleanly) {
-  const std::vector<uint8_t> glb = ValidGlb();
-  ASSERT_EQ(Decode(glb), StatusCode::kOk);
-  for (size_t cut = 0; cut < glb.size(); cut += (cut < 64 ? 1 : 37)) {
-    std::vector<uint8_t> part(glb.begin(), glb.begin() + long(cut));
-    EXPECT_NE(Decode(part), StatusCode::kOk) << "cut at " << cut;
+  for (bool quantize : {false, true}) {
+    const std::vector<uint8_t> glb = ValidGlb(false, quantize);
+    ASSERT_EQ(Decode(glb), StatusCode::kOk);
+    for (size_t cut = 0; cut < glb.size(); cut += (cut < 64 ? 1 : 37)) {
+      std::vector<uint8_t> part(glb.begin(), glb.begin() + long(cut));
+      EXPECT_NE(Decode(part), StatusCode::kOk) << "cut at " << cut;
+    }
   }
 }
 
 TEST(GltfHostile, RandomByteFlipsNeverCrash) {
-  for (bool meshopt : {false, true}) {
+  for (int variant = 0; variant < 4; ++variant) {
+    const bool meshopt = variant & 1, quantize = variant & 2;
 #ifndef ATEX_HAVE_MESHOPT
     if (meshopt) continue;
 #endif
-    const std::vector<uint8_t> glb = ValidGlb(meshopt);
+    const std::vector<uint8_t> glb = ValidGlb(meshopt, quantize);
     std::mt19937 rng(7);
     for (int trial = 0; trial < 400; ++trial) {
       std::vector<uint8_t> bytes = glb;
@@ -154,6 +158,42 @@ TEST(GltfHostile, BadValuesInTheBinaryData) {
     std::memcpy(&p.bin[at + 4], &nan_bits, 4);
     EXPECT_EQ(Decode(testing::JoinGlb(p.json, p.bin)), StatusCode::kOutOfRange);
   }
+}
+
+// The quantised file's new paths: integer types the extension does not allow, integers that must
+// be normalized, and the node's dequantisation frame (uniform, not mirrored, finite).
+TEST(GltfHostile, ForgedQuantizedAccessorsAndFrames) {
+  auto edit = [](const std::function<void(json&)>& f) { return DecodeEdited(f, false, true); };
+  auto accessor = [](json& d, const char* name) -> json& { return d["accessors"][AttributeAccessor(d, name)]; };
+  ASSERT_EQ(edit([](json&) {}), StatusCode::kOk);
+  EXPECT_EQ(edit([&](json& d) { accessor(d, "KHR_gaussian_splatting:ROTATION")["normalized"] = false; }),
+            StatusCode::kCorrupt);
+  EXPECT_EQ(edit([&](json& d) { accessor(d, "KHR_gaussian_splatting:OPACITY")["normalized"] = false; }),
+            StatusCode::kCorrupt);
+  EXPECT_EQ(edit([&](json& d) { accessor(d, "KHR_gaussian_splatting:OPACITY")["componentType"] = 5122; }),
+            StatusCode::kCorrupt);  // signed opacity
+  EXPECT_EQ(edit([&](json& d) { accessor(d, "KHR_gaussian_splatting:ROTATION")["componentType"] = 5121; }),
+            StatusCode::kCorrupt);  // unsigned rotation
+  EXPECT_EQ(edit([&](json& d) { accessor(d, "KHR_gaussian_splatting:SCALE")["componentType"] = 5123; }),
+            StatusCode::kCorrupt);  // the extension lists signed scales only
+  EXPECT_EQ(edit([&](json& d) { accessor(d, "KHR_gaussian_splatting:SH_DEGREE_0_COEF_0")["componentType"] = 5122; }),
+            StatusCode::kCorrupt);  // SH is float only
+  // A byteStride smaller than POSITION's 6-byte element.
+  EXPECT_EQ(edit([&](json& d) { d["bufferViews"][accessor(d, "POSITION")["bufferView"].get<int>()]["byteStride"] = 4; }),
+            StatusCode::kCorrupt);
+  EXPECT_EQ(edit([](json& d) { d["nodes"][0]["scale"] = {1.0, 2.0, 1.0}; }), StatusCode::kUnsupported);
+  // The same in a float file (its node is only the upright turn): refused, not ignored.
+  EXPECT_EQ(DecodeEdited([](json& d) { d["nodes"][0]["scale"] = {1.0, 2.0, 1.0}; }), StatusCode::kUnsupported);
+  EXPECT_EQ(edit([](json& d) { d["nodes"][0]["scale"] = {0.0, 0.0, 0.0}; }), StatusCode::kUnsupported);
+  EXPECT_EQ(edit([](json& d) { d["nodes"][0]["scale"] = {-1.0, -1.0, -1.0}; }), StatusCode::kUnsupported);
+  EXPECT_NE(edit([](json& d) { d["nodes"][0]["scale"] = {1e300, 1e300, 1e300}; }), StatusCode::kOk);
+  EXPECT_NE(edit([](json& d) { d["nodes"][0]["translation"] = {1e300, 0.0, 0.0}; }), StatusCode::kOk);
+  // A negative stored scale (the extension's linear scales must be positive).
+  GlbParts p = testing::SplitGlb(ValidGlb(false, true));
+  const json& a = p.json["accessors"][AttributeAccessor(p.json, "KHR_gaussian_splatting:SCALE")];
+  const size_t at = p.json["bufferViews"][a["bufferView"].get<int>()]["byteOffset"].get<size_t>();
+  p.bin[at + 1] = 0x80;  // int16 component 0 of element 0 becomes negative
+  EXPECT_EQ(Decode(testing::JoinGlb(p.json, p.bin)), StatusCode::kOutOfRange);
 }
 
 TEST(GltfHostile, ExternalUrisStayInTheFolder) {

@@ -29,10 +29,11 @@ namespace atex {
 namespace {
 
 using nlohmann::json;
-// Reads attribute `name` of a primitive as floats, checking its shape.
+// Reads attribute `name` of a primitive as floats, checking its shape; `normalized_integers`: integer
+// component types must be normalized (KHR_gaussian_splatting's ROTATION and OPACITY).
 Status ReadAttribute(const tinygltf::Model& model, const tinygltf::Primitive& primitive, const std::string& name,
                      int components, std::initializer_list<int> types, size_t count, std::vector<float>* out,
-                     bool* present = nullptr) {
+                     bool* present = nullptr, bool normalized_integers = false) {
   auto it = primitive.attributes.find(name);
   if (it == primitive.attributes.end()) {
     if (present != nullptr) {
@@ -45,6 +46,9 @@ Status ReadAttribute(const tinygltf::Model& model, const tinygltf::Primitive& pr
   const std::string where = "attribute " + name;
   ATEX_ASSIGN_OR_RETURN(gltf::AccessorData a, gltf::ResolveAccessor(model, it->second, where));
   ATEX_RETURN_IF_ERROR(gltf::CheckAccessor(a, components, types, count, where));
+  if (normalized_integers && a.component_type != gltf::kComponentFloat && !a.normalized) {
+    return MakeError(StatusCode::kCorrupt, where, " has integer components that are not normalized");
+  }
   return gltf::ReadFloats(a, where, out);
 }
 
@@ -73,9 +77,9 @@ StatusOr<Gaussians> ReadBase(const tinygltf::Model& model, const tinygltf::Primi
   g.positions = std::move(positions);
 
   std::vector<float> xyzw, scales, opacities;
-  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrRotation, 4, kRotationTypes, n, &xyzw));
+  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrRotation, 4, kRotationTypes, n, &xyzw, nullptr, true));
   ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrScale, 3, kScaleTypes, n, &scales));
-  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrOpacity, 1, kOpacityTypes, n, &opacities));
+  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrOpacity, 1, kOpacityTypes, n, &opacities, nullptr, true));
   g.rotations.resize(n * 4);
   for (size_t i = 0; i < n; ++i) {
     g.rotations[i * 4 + 0] = xyzw[i * 4 + 3];
@@ -196,6 +200,35 @@ Status BakeTransform(const gltf::Mat4& m, Gaussians& g) {
     gltf::RotateSh(sh_rotation, g.sh_degree, &g.sh[i * k_count * 3]);
   }
   return Status::Ok();
+}
+
+// Our own files: the node's rotation is the upright turn (not applied: the data stays in asset
+// coordinates), but its uniform scale and translation are a quantised file's dequantisation
+// (world = T + R * s * q, so asset = s * q + R^T * T). Files without them are left bit for bit.
+Status ApplyQuantizationFrame(const gltf::Mat4& m, Gaussians& g) {
+  double s = 0;
+  for (int r = 0; r < 3; ++r) s += m[r] * m[r];
+  s = std::sqrt(s);  // column 0's length; BakeTransform refuses other columns of another length
+  if (!(s > 0) || !std::isfinite(s)) return MakeError(StatusCode::kUnsupported, "node transform has a zero scale");
+  std::array<double, 3> offset;  // R^T * T, with R = (upper 3x3) / s
+  for (int c = 0; c < 3; ++c) {
+    offset[c] = (m[c * 4 + 0] * m[12] + m[c * 4 + 1] * m[13] + m[c * 4 + 2] * m[14]) / s;
+  }
+  // A rotation-only node (every column of unit length, no offset, within rounding): nothing to apply.
+  constexpr double kTiny = 1e-12;
+  bool rotation_only = std::abs(offset[0]) <= kTiny && std::abs(offset[1]) <= kTiny && std::abs(offset[2]) <= kTiny;
+  for (int c = 0; c < 3; ++c) {
+    const double length = std::sqrt(m[c * 4] * m[c * 4] + m[c * 4 + 1] * m[c * 4 + 1] + m[c * 4 + 2] * m[c * 4 + 2]);
+    rotation_only = rotation_only && std::abs(length - 1) <= kTiny;
+  }
+  if (rotation_only) return Status::Ok();
+  gltf::Mat4 frame = gltf::kIdentity;
+  for (int k = 0; k < 3; ++k) frame[size_t(k * 5)] = s;
+  for (int k = 0; k < 3; ++k) frame[size_t(12 + k)] = offset[k];
+  // The full matrix passes BakeTransform's checks (uniform, not mirrored, affine) first.
+  Gaussians probe;
+  ATEX_RETURN_IF_ERROR(BakeTransform(m, probe));
+  return BakeTransform(frame, g);
 }
 
 // Appends `b` to `a` (SH degree: the larger; missing coefficients are zero).
@@ -335,6 +368,7 @@ StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, cons
   const auto& sp = splats[0];
   const tinygltf::Primitive& primitive = model.meshes[sp.mesh].primitives[sp.primitive];
   ATEX_ASSIGN_OR_RETURN(asset.gaussians, ReadPrimitiveBase(model, doc, sp, options));
+  ATEX_RETURN_IF_ERROR(ApplyQuantizationFrame(sp.world, asset.gaussians));
   const json& khr = doc["meshes"][sp.mesh]["primitives"][sp.primitive]["extensions"][gltf::kKhrGaussianSplatting];
   if (!khr.is_object()) return MakeError(StatusCode::kCorrupt, gltf::kKhrGaussianSplatting, " is not an object");
   const json* sub = FindPath(khr, {"extensions"});
@@ -357,6 +391,9 @@ StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, cons
   auto md = MetadataFromJson(*metadata);
   if (!md.ok()) return md.status().WithContext("extras.atex.metadata");
   asset.metadata = std::move(md).value();
+  // Exported without its textures (--no-textures, or a foreign edit): the metadata describes the
+  // asset as it was, but what the file holds is untextured.
+  if (!asset.textures) asset.metadata.texture_mode = "none";
   ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
   return asset;
 }

@@ -146,6 +146,20 @@ TEST(GltfImport, WithoutRawParametersTheActivatedValuesAreInverted) {
   }
 }
 
+TEST(GltfImport, ExportedWithoutTexturesImportsAsUntextured) {
+  const Asset asset = MakeTestAsset({.count = 20, .sh_degree = 1});
+  ASSERT_EQ(asset.metadata.texture_mode, "adaptive");
+  GltfExportOptions options;
+  options.textures = false;  // `atex export --no-textures`: the metadata still says "adaptive"
+  auto glb = EncodeGlb(asset, options);
+  ASSERT_TRUE(glb.ok());
+  auto back = DecodeGltf(glb->data(), glb->size());
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_FALSE(back->textures.has_value());
+  EXPECT_EQ(back->metadata.texture_mode, "none");
+  EXPECT_TRUE(SameBits(back->gaussians.positions, asset.gaussians.positions));
+}
+
 #ifdef ATEX_HAVE_MESHOPT
 TEST(GltfImport, MeshoptLosslessFloatsComeBackExactly) {
   const Asset asset = MakeTestAsset({.count = 200, .sh_degree = 2});

@@ -21,6 +21,7 @@ inline constexpr const char* kKhrGaussianSplatting = "KHR_gaussian_splatting";
 inline constexpr const char* kAtexTextures = "ATEX_gaussian_textures";
 inline constexpr const char* kAtexDeformation = "ATEX_gaussian_deformation";
 inline constexpr const char* kExtMeshopt = "EXT_meshopt_compression";
+inline constexpr const char* kKhrMeshQuantization = "KHR_mesh_quantization";
 
 // KHR_gaussian_splatting attribute semantics.
 inline constexpr const char* kAttrPosition = "POSITION";

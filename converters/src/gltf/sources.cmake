@@ -1,5 +1,5 @@
 # Converter 'gltf': glTF 2.0 export (KHR_gaussian_splatting + ATEX_gaussian_textures +
-# ATEX_gaussian_deformation, optional EXT_meshopt_compression) and import through tinygltf.
+# ATEX_gaussian_deformation, optional EXT_meshopt_compression, KHR_mesh_quantization) and import through tinygltf.
 list(APPEND ATEX_CONVERTER_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/gltf_axes.cc
   ${CMAKE_CURRENT_LIST_DIR}/gltf_writer.cc
@@ -10,6 +10,7 @@ list(APPEND ATEX_CONVERTER_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/gltf_import_extensions.cc
   ${CMAKE_CURRENT_LIST_DIR}/gltf_import_scene.cc
   ${CMAKE_CURRENT_LIST_DIR}/gltf_spz.cc
+  ${CMAKE_CURRENT_LIST_DIR}/gltf_quantize.cc
   ${CMAKE_CURRENT_LIST_DIR}/meshopt_codec.cc
   ${CMAKE_CURRENT_LIST_DIR}/sh_rotation.cc
   ${CMAKE_CURRENT_LIST_DIR}/tinygltf_impl.cc)
@@ -20,6 +21,7 @@ function(atex_converter_gltf_tests)
             ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/gltf_import_test.cc
             ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/gltf_hostile_test.cc
             ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/gltf_spz_test.cc
+            ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/gltf_quantize_test.cc
     LIBS atex_converters
     LABELS hostile
     TIMEOUT 300)

@@ -22,11 +22,15 @@
 //     filter, other floats use the EXPONENTIAL filter (lossy) or none (lossless).
 //     The uncompressed data is not stored: the fallback buffer has no URI, so
 //     EXT_meshopt_compression is listed in extensionsRequired (as its spec demands).
+//   * Optional KHR_mesh_quantization (GltfExportOptions::quantize): normalized integer base
+//     attributes, dequantised by the node's scale and translation; alone or with meshopt.
 //
 // Import (needs tinygltf, ATEX_HAVE_TINYGLTF) reads our files back without loss in
 // float mode (positions, raw rotations, log-scales, logits, SH, textures, field and
 // metadata bit for bit) and reads other people's KHR_gaussian_splatting files (base
-// attributes only; node transforms baked into the data). Input is hostile: every index,
+// attributes only; node transforms baked into the data). In our own files the node's rotation
+// is the upright turn and is not applied; its uniform scale and translation (a quantised file's
+// dequantisation) are. Input is hostile: every index,
 // offset, stride and count is checked against the bytes present before use.
 #pragma once
 
@@ -90,6 +94,15 @@ struct GltfExportOptions {
   // the raw parameters are not written (import gives the SPZ-rounded values), and COLOR_0 is
   // omitted. Not with `meshopt` (kInvalidArgument).
   bool spz = false;
+
+  // KHR_mesh_quantization: the base attributes as normalized integers where KHR_gaussian_splatting
+  // allows them (lossy; gltf_quantize.h has the layout and error bounds): POSITION int16 in the
+  // node's frame (the node's uniform scale and translation map [-1, 1]^3 onto the scene's bounds),
+  // ROTATION int8 (int16 with the meshopt QUATERNION filter), SCALE int16 in the same node units,
+  // OPACITY uint16; SH stays float (the extension allows no other type). The extension is then
+  // required, the raw parameters are not written (import gives the quantised values). Combines
+  // with `meshopt`; not with `spz` (kInvalidArgument).
+  bool quantize = false;
 
   // EXT_meshopt_compression (kUnsupported when the build lacks meshoptimizer).
   bool meshopt = false;
