@@ -18,6 +18,7 @@ function(atex_cuda_test name source)
 endfunction()
 
 atex_cuda_test(deform_parity_test deform_parity_test.cc)
+atex_cuda_test(deform_engine_parity_test deform_engine_parity_test.cc)
 atex_cuda_test(loss_parity_test loss_parity_test.cc)
 atex_cuda_test(memory_limit_test memory_limit_test.cc)
 
