@@ -179,8 +179,9 @@ TEST(GltfHostile, ForgedQuantizedAccessorsAndFrames) {
   EXPECT_EQ(edit([&](json& d) { accessor(d, "KHR_gaussian_splatting:SH_DEGREE_0_COEF_0")["componentType"] = 5122; }),
             StatusCode::kCorrupt);  // SH is float only
   // A byteStride smaller than POSITION's 6-byte element.
-  EXPECT_EQ(edit([&](json& d) { d["bufferViews"][accessor(d, "POSITION")["bufferView"].get<int>()]["byteStride"] = 4; }),
-            StatusCode::kCorrupt);
+  EXPECT_EQ(
+      edit([&](json& d) { d["bufferViews"][accessor(d, "POSITION")["bufferView"].get<int>()]["byteStride"] = 4; }),
+      StatusCode::kCorrupt);
   EXPECT_EQ(edit([](json& d) { d["nodes"][0]["scale"] = {1.0, 2.0, 1.0}; }), StatusCode::kUnsupported);
   // The same in a float file (its node is only the upright turn): refused, not ignored.
   EXPECT_EQ(DecodeEdited([](json& d) { d["nodes"][0]["scale"] = {1.0, 2.0, 1.0}; }), StatusCode::kUnsupported);

@@ -77,9 +77,11 @@ StatusOr<Gaussians> ReadBase(const tinygltf::Model& model, const tinygltf::Primi
   g.positions = std::move(positions);
 
   std::vector<float> xyzw, scales, opacities;
-  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrRotation, 4, kRotationTypes, n, &xyzw, nullptr, true));
+  ATEX_RETURN_IF_ERROR(
+      ReadAttribute(model, primitive, gltf::kAttrRotation, 4, kRotationTypes, n, &xyzw, nullptr, true));
   ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrScale, 3, kScaleTypes, n, &scales));
-  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrOpacity, 1, kOpacityTypes, n, &opacities, nullptr, true));
+  ATEX_RETURN_IF_ERROR(
+      ReadAttribute(model, primitive, gltf::kAttrOpacity, 1, kOpacityTypes, n, &opacities, nullptr, true));
   g.rotations.resize(n * 4);
   for (size_t i = 0; i < n; ++i) {
     g.rotations[i * 4 + 0] = xyzw[i * 4 + 3];
