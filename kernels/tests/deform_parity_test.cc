@@ -67,6 +67,8 @@ std::vector<Case> Cases() {
 
 class DeformParityTest : public ::testing::TestWithParam<Case> {};
 
+// Over 120 lines on purpose: one case reads top to bottom (CPU references, upload, forward,
+// backward, comparisons), and its fatal gtest assertions must stay in the test body.
 TEST_P(DeformParityTest, ForwardAndBackwardMatchCpu) {
   ATEX_REQUIRE_CUDA_DEVICE();
   const Case& c = GetParam();

@@ -31,6 +31,10 @@ struct Case {
   const char* name;
 };
 
+// One random scene through the float and double CPU references and the GPU engine, forward and
+// backward, every output compared. Over 120 lines on purpose: a parity case reads top to bottom
+// (references, upload, forward, backward, the table of compared quantities), and its gtest
+// assertions must stay in one function to stop the case at the first fatal failure.
 void RunCase(const Case& c, uint32_t seed) {
   std::mt19937 rng(seed);
   const Camera camera = render_testing::RandomCamera(c.width, c.height, rng);
