@@ -34,6 +34,9 @@ foreach(check gltf_validator babylon_render splatv_reader)
     LABELS web ENVIRONMENT "ATEX_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
 endforeach()
 
+# Babylon.js renders nine scenes (the lego four times: unbaked and baked, two blurs).
+set_tests_properties(web_babylon_render PROPERTIES TIMEOUT 420)
+
 # Third-party players in headless Chromium (player_render.mjs PLAYER FIXTURE_DIR); Spark is slow
 # on software WebGL2 (about a minute per lego picture on the CPU machine).
 foreach(player playcanvas spark)
