@@ -139,6 +139,8 @@ TEST(TextureBake, FineCheckerFallsBackToFolding) {
   const Scores s = Score(asset, &report);
   EXPECT_GT(s.baked, s.unbaked - 0.5);
   EXPECT_EQ(report.fold_better + report.split, 1u);
+  std::printf("4x4 checker: unbaked %.2f dB, baked %.2f dB (%zu Gaussians)\n", s.unbaked, s.baked,
+              report.output_gaussians);
 }
 
 TEST(TextureBake, OneByOneFoldsIntoColourAndOpacity) {
@@ -151,6 +153,7 @@ TEST(TextureBake, OneByOneFoldsIntoColourAndOpacity) {
   EXPECT_EQ(report.folded, 1u);
   EXPECT_GT(s.baked, 60.0);  // exact up to float rounding
   EXPECT_LT(s.unbaked, 45.0);
+  std::printf("1x1: unbaked %.2f dB, baked %.2f dB\n", s.unbaked, s.baked);
 }
 
 TEST(TextureBake, UntexturedZeroTexelsChangeNothing) {
