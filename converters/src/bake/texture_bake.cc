@@ -27,6 +27,7 @@
 #include <array>
 #include <cmath>
 #include <new>
+#include <utility>
 #include <vector>
 
 #include "atex/detail/quaternion.h"
@@ -133,21 +134,142 @@ struct Child {
   std::array<double, 3> dc{};     // colour added to the parent's (before the SH constant)
 };
 
+// The textured Gaussian seen face-on, on the fit grid over [−3, 3]² (plane standard deviations);
+// shared by every candidate geometry.
+struct Profile {
+  size_t m = 0;                          // grid points
+  std::vector<double> u, v;              // [m] coordinates
+  std::vector<double> target;            // [m] O = min(0.99, α·g·F)
+  std::vector<double> colour;            // [m][3] Δc = 0.1·tanh(r)
+  double fold_se = 0;     // Σ LayerError of folding the centre texel into the parent
+  double unbaked_se = 0;  // Σ LayerError of the parent without its texture
+};
+
+Profile SampleProfile(const TexturePool& t, size_t i, double alpha, int grid) {
+  Profile p;
+  p.m = size_t(grid) * size_t(grid);
+  p.u.resize(p.m), p.v.resize(p.m), p.target.resize(p.m), p.colour.resize(p.m * 3);
+  const TexelValue centre = SampleActivated(t, i, 0, 0);
+  for (int y = 0; y < grid; ++y) {
+    for (int x = 0; x < grid; ++x) {
+      const size_t s = size_t(y) * size_t(grid) + size_t(x);
+      const double u = -kGridExtent + 2 * kGridExtent * x / (grid - 1);
+      const double v = -kGridExtent + 2 * kGridExtent * y / (grid - 1);
+      p.u[s] = u, p.v[s] = v;
+      const TexelValue tv = SampleActivated(t, i, u, v);
+      const double parent = alpha * std::exp(-0.5 * (u * u + v * v));
+      p.target[s] = std::min(kMaxAlpha, parent * tv.factor);
+      const double folded = std::min(kMaxAlpha, parent * centre.factor);
+      std::array<double, 3> folded_colour, wanted, none{};
+      for (int c = 0; c < 3; ++c) {
+        p.colour[s * 3 + size_t(c)] = tv.colour[size_t(c)];
+        folded_colour[size_t(c)] = folded * centre.colour[size_t(c)];
+        wanted[size_t(c)] = p.target[s] * tv.colour[size_t(c)];
+      }
+      p.fold_se += LayerError(folded, folded_colour, p.target[s], wanted);
+      p.unbaked_se += LayerError(std::min(kMaxAlpha, parent), none, p.target[s], wanted);
+    }
+  }
+  return p;
+}
+
 struct Fit {
   std::array<Child, kMaxChildren> children;
   int count = 0;
   double scale_u = 1, scale_v = 1;  // child / parent standard deviation
-  // Sums of LayerError over the grid: the fit, and the parent without its texture.
-  double opacity_se = 0, opacity_se_before = 0;
-  double fold_se = 0;  // the error of folding the centre texel instead
-  size_t samples = 0;
-  double Error() const { return opacity_se; }
+  std::vector<double> base;         // [m][count] each child's unit footprint b_k on the grid
+  double se = 0;                    // Σ LayerError of the result
 };
+
+using Small = std::array<std::array<double, kMaxChildren>, kMaxChildren>;
+
+// Gauss-Newton (Levenberg-damped) on the children's opacities: their composite 1 − Π(1 − a_k·b_k)
+// against the target profile, a_k kept in [kMinAlpha, kMaxAlpha].
+void FitOpacities(const Profile& p, int iterations, Fit* fit) {
+  const int n = fit->count;
+  const auto b = [&](size_t s, int k) { return fit->base[s * size_t(n) + size_t(k)]; };
+  for (int it = 0; it < iterations; ++it) {
+    Small jtj{};
+    std::array<double, kMaxChildren> jtr{};
+    for (size_t s = 0; s < p.m; ++s) {
+      std::array<double, kMaxChildren> keep{};  // 1 − a_k·b_k
+      double all = 1;
+      for (int k = 0; k < n; ++k) {
+        keep[size_t(k)] = 1 - fit->children[size_t(k)].alpha * b(s, k);
+        all *= keep[size_t(k)];
+      }
+      const double residual = (1 - all) - p.target[s];
+      std::array<double, kMaxChildren> jac{};
+      for (int k = 0; k < n; ++k) {
+        double others = 1;
+        for (int j = 0; j < n; ++j)
+          if (j != k) others *= keep[size_t(j)];
+        jac[size_t(k)] = b(s, k) * others;
+      }
+      for (int k = 0; k < n; ++k) {
+        jtr[size_t(k)] += jac[size_t(k)] * residual;
+        for (int j = 0; j < n; ++j) jtj[size_t(k)][size_t(j)] += jac[size_t(k)] * jac[size_t(j)];
+      }
+    }
+    for (int k = 0; k < n; ++k) jtj[size_t(k)][size_t(k)] *= 1 + 1e-3;
+    std::array<double, kMaxChildren> step{};
+    SolveSmall(jtj, jtr, n, &step);
+    for (int k = 0; k < n; ++k) {
+      Child& c = fit->children[size_t(k)];
+      c.alpha = std::clamp(c.alpha - step[size_t(k)], kMinAlpha, kMaxAlpha);
+    }
+  }
+}
+
+// Colours: least squares of the premultiplied layer colour, Σ_k Ô·w_k·c_k against O·Δc (Ô the
+// children's composite opacity, w_k = a_k·b_k/Σ a_j·b_j their shares), with a small ridge toward
+// the parent's colour; then the result's error.
+void FitColours(const Profile& p, Fit* fit) {
+  const int n = fit->count;
+  std::vector<double> shown_alpha(p.m), basis(p.m * size_t(n));
+  Small normal{};
+  std::array<std::array<double, kMaxChildren>, 3> rhs{};
+  for (size_t s = 0; s < p.m; ++s) {
+    double sum = 0, all = 1;
+    for (int k = 0; k < n; ++k) {
+      const double ab = fit->children[size_t(k)].alpha * fit->base[s * size_t(n) + size_t(k)];
+      sum += ab, all *= 1 - ab;
+    }
+    shown_alpha[s] = 1 - all;
+    for (int k = 0; k < n; ++k) {
+      const double ab = fit->children[size_t(k)].alpha * fit->base[s * size_t(n) + size_t(k)];
+      basis[s * size_t(n) + size_t(k)] = shown_alpha[s] * (sum > 0 ? ab / sum : 1.0 / n);
+    }
+    for (int k = 0; k < n; ++k) {
+      const double bk = basis[s * size_t(n) + size_t(k)];
+      for (int j = 0; j < n; ++j) normal[size_t(k)][size_t(j)] += bk * basis[s * size_t(n) + size_t(j)];
+      for (int c = 0; c < 3; ++c) rhs[size_t(c)][size_t(k)] += bk * p.target[s] * p.colour[s * 3 + size_t(c)];
+    }
+  }
+  double trace = 0;
+  for (int k = 0; k < n; ++k) trace += normal[size_t(k)][size_t(k)];
+  for (int k = 0; k < n; ++k) normal[size_t(k)][size_t(k)] += 1e-3 * trace / n + 1e-300;
+  for (int c = 0; c < 3; ++c) {
+    std::array<double, kMaxChildren> x{};
+    SolveSmall(normal, rhs[size_t(c)], n, &x);
+    for (int k = 0; k < n; ++k) fit->children[size_t(k)].dc[size_t(c)] = std::clamp(x[size_t(k)], -0.5, 0.5);
+  }
+  fit->se = 0;
+  for (size_t s = 0; s < p.m; ++s) {
+    std::array<double, 3> premultiplied{}, wanted;
+    for (int c = 0; c < 3; ++c) {
+      for (int k = 0; k < n; ++k)
+        premultiplied[size_t(c)] += basis[s * size_t(n) + size_t(k)] * fit->children[size_t(k)].dc[size_t(c)];
+      wanted[size_t(c)] = p.target[s] * p.colour[s * 3 + size_t(c)];
+    }
+    fit->se += LayerError(shown_alpha[s], premultiplied, p.target[s], wanted);
+  }
+}
 
 // Fits the children of textured Gaussian `i` (opacity `alpha`) as described at the top.
 // `d`: the children's offset; `narrow`: their standard deviation along a split axis relative to
 // the moment-matching sqrt(1 − d²).
-Fit FitChildren(const TexturePool& t, size_t i, double alpha, const TextureBakeOptions& options, double d,
+Fit FitChildren(const Profile& p, const TexturePool& t, size_t i, double alpha, int iterations, double d,
                 double narrow) {
   Fit fit;
   const int nu = t.widths[i] > 1 ? 2 : 1, nv = t.heights[i] > 1 ? 2 : 1;
@@ -159,115 +281,21 @@ Fit FitChildren(const TexturePool& t, size_t i, double alpha, const TextureBakeO
       Child& c = fit.children[size_t(y * nu + x)];
       c.u = nu == 2 ? (x == 0 ? -d : d) : 0.0;
       c.v = nv == 2 ? (y == 0 ? -d : d) : 0.0;
+      // Closed form: the parent's mass share at the texture value of the child's centre.
       const double share = alpha * SampleActivated(t, i, c.u, c.v).factor / (fit.count * fit.scale_u * fit.scale_v);
       c.alpha = std::clamp(share, kMinAlpha, kMaxAlpha);
     }
   }
-  const int n = fit.count;
-  const int g = options.grid;
-  const size_t m = size_t(g) * size_t(g);
-  // The textured profile and each child's unit footprint b_k on the grid.
-  std::vector<double> target(m), colour(m * 3), base(m * size_t(n)), grid_u(m), grid_v(m);
-  const TexelValue centre = SampleActivated(t, i, 0, 0);
-  for (int y = 0; y < g; ++y) {
-    for (int x = 0; x < g; ++x) {
-      const size_t s = size_t(y) * size_t(g) + size_t(x);
-      const double u = -kGridExtent + 2 * kGridExtent * x / (g - 1);
-      const double v = -kGridExtent + 2 * kGridExtent * y / (g - 1);
-      grid_u[s] = u, grid_v[s] = v;
-      const TexelValue tv = SampleActivated(t, i, u, v);
-      const double parent = alpha * std::exp(-0.5 * (u * u + v * v));
-      target[s] = std::min(kMaxAlpha, parent * tv.factor);
-      for (int c = 0; c < 3; ++c) colour[s * 3 + size_t(c)] = tv.colour[size_t(c)];
-      const double folded = std::min(kMaxAlpha, parent * centre.factor);
-      std::array<double, 3> folded_colour, wanted;
-      for (int c = 0; c < 3; ++c) {
-        folded_colour[size_t(c)] = folded * centre.colour[size_t(c)];
-        wanted[size_t(c)] = target[s] * tv.colour[size_t(c)];
-      }
-      fit.fold_se += LayerError(folded, folded_colour, target[s], wanted);
-      for (int k = 0; k < n; ++k) {
-        const Child& ch = fit.children[size_t(k)];
-        const double du = (u - ch.u) / fit.scale_u, dv = (v - ch.v) / fit.scale_v;
-        base[s * size_t(n) + size_t(k)] = std::exp(-0.5 * (du * du + dv * dv));
-      }
+  const size_t n = size_t(fit.count);
+  fit.base.resize(p.m * n);
+  for (size_t s = 0; s < p.m; ++s) {
+    for (size_t k = 0; k < n; ++k) {
+      const double du = (p.u[s] - fit.children[k].u) / fit.scale_u, dv = (p.v[s] - fit.children[k].v) / fit.scale_v;
+      fit.base[s * n + k] = std::exp(-0.5 * (du * du + dv * dv));
     }
   }
-  // Gauss-Newton (Levenberg-damped) on the composite opacity.
-  for (int it = 0; it < options.fit_iterations; ++it) {
-    std::array<std::array<double, kMaxChildren>, kMaxChildren> jtj{};
-    std::array<double, kMaxChildren> jtr{};
-    for (size_t s = 0; s < m; ++s) {
-      std::array<double, kMaxChildren> keep{};  // 1 − a_k·b_k
-      double all = 1;
-      for (int k = 0; k < n; ++k) {
-        keep[size_t(k)] = 1 - fit.children[size_t(k)].alpha * base[s * size_t(n) + size_t(k)];
-        all *= keep[size_t(k)];
-      }
-      const double residual = (1 - all) - target[s];
-      std::array<double, kMaxChildren> jac{};
-      for (int k = 0; k < n; ++k) {
-        double others = 1;
-        for (int j = 0; j < n; ++j)
-          if (j != k) others *= keep[size_t(j)];
-        jac[size_t(k)] = base[s * size_t(n) + size_t(k)] * others;
-      }
-      for (int k = 0; k < n; ++k) {
-        jtr[size_t(k)] += jac[size_t(k)] * residual;
-        for (int j = 0; j < n; ++j) jtj[size_t(k)][size_t(j)] += jac[size_t(k)] * jac[size_t(j)];
-      }
-    }
-    for (int k = 0; k < n; ++k) jtj[size_t(k)][size_t(k)] *= 1 + 1e-3;
-    std::array<double, kMaxChildren> step{};
-    SolveSmall(jtj, jtr, n, &step);
-    for (int k = 0; k < n; ++k) {
-      Child& c = fit.children[size_t(k)];
-      c.alpha = std::clamp(c.alpha - step[size_t(k)], kMinAlpha, kMaxAlpha);
-    }
-  }
-  // Colours: least squares of the premultiplied layer colour, Σ_k Ô·w_k·c_k against O·Δc (Ô the
-  // children's composite opacity, w_k their shares), with a small ridge toward the parent's colour.
-  std::vector<double> shown_alpha(m), basis(m * size_t(n));
-  std::array<std::array<double, kMaxChildren>, kMaxChildren> normal{};
-  std::array<std::array<double, kMaxChildren>, 3> rhs{};
-  for (size_t s = 0; s < m; ++s) {
-    double sum = 0, all = 1;
-    for (int k = 0; k < n; ++k) {
-      const double ab = fit.children[size_t(k)].alpha * base[s * size_t(n) + size_t(k)];
-      sum += ab, all *= 1 - ab;
-    }
-    shown_alpha[s] = 1 - all;
-    for (int k = 0; k < n; ++k) {
-      const double share = sum > 0 ? fit.children[size_t(k)].alpha * base[s * size_t(n) + size_t(k)] / sum : 1.0 / n;
-      basis[s * size_t(n) + size_t(k)] = shown_alpha[s] * share;
-    }
-    for (int k = 0; k < n; ++k) {
-      const double bk = basis[s * size_t(n) + size_t(k)];
-      for (int j = 0; j < n; ++j) normal[size_t(k)][size_t(j)] += bk * basis[s * size_t(n) + size_t(j)];
-      for (int c = 0; c < 3; ++c) rhs[size_t(c)][size_t(k)] += bk * target[s] * colour[s * 3 + size_t(c)];
-    }
-  }
-  double trace = 0;
-  for (int k = 0; k < n; ++k) trace += normal[size_t(k)][size_t(k)];
-  for (int k = 0; k < n; ++k) normal[size_t(k)][size_t(k)] += 1e-3 * trace / n + 1e-300;
-  for (int c = 0; c < 3; ++c) {
-    std::array<double, kMaxChildren> x{};
-    SolveSmall(normal, rhs[size_t(c)], n, &x);
-    for (int k = 0; k < n; ++k) fit.children[size_t(k)].dc[size_t(c)] = std::clamp(x[size_t(k)], -0.5, 0.5);
-  }
-  // Errors (see LayerError) of the result, and of the untextured parent, for the choice and report.
-  for (size_t s = 0; s < m; ++s) {
-    std::array<double, 3> premultiplied{};
-    for (int k = 0; k < n; ++k)
-      for (int c = 0; c < 3; ++c)
-        premultiplied[size_t(c)] += basis[s * size_t(n) + size_t(k)] * fit.children[size_t(k)].dc[size_t(c)];
-    const double plain = std::min(kMaxAlpha, alpha * std::exp(-0.5 * (grid_u[s] * grid_u[s] + grid_v[s] * grid_v[s])));
-    std::array<double, 3> none{}, wanted{};
-    for (int c = 0; c < 3; ++c) wanted[size_t(c)] = target[s] * colour[s * 3 + size_t(c)];
-    fit.opacity_se += LayerError(shown_alpha[s], premultiplied, target[s], wanted);
-    fit.opacity_se_before += LayerError(plain, none, target[s], wanted);
-  }
-  fit.samples = m;
+  FitOpacities(p, iterations, &fit);
+  FitColours(p, &fit);
   return fit;
 }
 
@@ -354,22 +382,24 @@ StatusOr<Gaussians> BakeTextures(const Gaussians& g, const TexturePool& t, const
       // moment match; a faint one by the moment match itself. When no candidate beats folding
       // the centre texel into the parent (a texture too faint or too fine for 2 children per
       // axis), the parent is folded (kSplitGain): baking never makes the fit worse than one Gaussian.
+      const Profile profile = SampleProfile(t, i, alpha, options.grid);
       Fit fit;
       bool have = false;
       for (double d : {0.35, 0.5, 0.65}) {
         for (double narrow : {0.55, 0.75, 1.0}) {
-          Fit candidate = FitChildren(t, i, alpha, options, d, narrow);
-          if (!have || candidate.Error() < fit.Error()) fit = candidate, have = true;
+          Fit candidate = FitChildren(profile, t, i, alpha, options.fit_iterations, d, narrow);
+          if (!have || candidate.se < fit.se) fit = std::move(candidate), have = true;
         }
       }
-      if (!(fit.Error() < kSplitGain * fit.fold_se)) {
+      samples += profile.m;
+      unbaked_se += profile.unbaked_se;
+      if (!(fit.se < kSplitGain * profile.fold_se)) {
         const TexelValue tv = SampleActivated(t, i, 0, 0);
         AppendChild(g, i, {0, 0, 0}, {0, 0, 0}, float(Logit(std::clamp(alpha * tv.factor, kMinAlpha, kMaxAlpha))),
                     tv.colour, &out);
         ++r.folded;
         ++r.fold_better;
-        fit_se += fit.fold_se, unbaked_se += fit.opacity_se_before;
-        samples += fit.samples;
+        fit_se += profile.fold_se;
         continue;
       }
       const float* q = &g.rotations[i * 4];
@@ -390,8 +420,7 @@ StatusOr<Gaussians> BakeTextures(const Gaussians& g, const TexturePool& t, const
         AppendChild(g, i, offset, log_delta, float(Logit(c.alpha)), c.dc, &out);
       }
       ++r.split;
-      fit_se += fit.Error(), unbaked_se += fit.opacity_se_before;
-      samples += fit.samples;
+      fit_se += fit.se;
     }
     r.output_gaussians = out.size();
     if (samples > 0) {

@@ -8,7 +8,9 @@
 //   * a 1x1 texture is constant over the plane: it folds exactly into the DC colour and the
 //     opacity (one Gaussian, only min(0.99, ·) of the renderer's clamp differs);
 //   * a larger texture splits the Gaussian into 2 children along each texture axis whose side is
-//     greater than 1 (2 or 4 children), placed in the plane, fitted as texture_bake.cc explains.
+//     greater than 1 (2 or 4 children), placed in the plane, fitted as texture_bake.cc explains,
+//     unless that fit is not clearly better than folding (opaque parents, textures that
+//     alternate per texel): then it is folded like a 1x1.
 // The result has no texture pool; everything else (rotation, normal-axis scale, higher SH bands,
 // time windows) is copied from the parent.
 #pragma once
@@ -31,12 +33,13 @@ struct TextureBakeOptions {
 struct TextureBakeReport {
   size_t input_gaussians = 0;
   size_t output_gaussians = 0;
-  size_t folded = 0;  // 1x1 textures folded into one Gaussian
-  size_t split = 0;   // Gaussians replaced by 2 or 4 children
-  size_t fold_better = 0;  // textured (> 1x1, not constant) but folded: 2 children per axis fitted worse
+  size_t folded = 0;       // Gaussians kept as one, their texture folded in (fold_better included)
+  size_t split = 0;        // Gaussians replaced by 2 or 4 children
+  size_t fold_better = 0;  // textured (> 1x1, not constant) but folded: the children fitted too little better
   // Over the textured Gaussians (> 1x1, not constant), on each one's fit grid: the RMS of the
-  // opacity error plus the opacity-weighted colour error (both in [0, 1] units) of the baked
-  // result, and of the parent without its texture (what a player shows without baking).
+  // layer error (texture_bake.cc, LayerError: half the opacity error plus the premultiplied
+  // colour error, image units) of the baked result, and of the parent without its texture (what
+  // a player shows without baking).
   double fit_rms = 0, unbaked_rms = 0;
 };
 
