@@ -20,6 +20,7 @@ struct ConvertArgs {
   bool draco_attributes = false;
   double time = 0;
   bool has_time = false;
+  bool bake_textures = false;
   std::string base;
   int atlas_width = 0;
   std::string codec = "shuffle-zstd";
@@ -76,6 +77,7 @@ int RunConvert(const ConvertArgs& a) {
   options.draco_bits = a.draco_bits;
   options.draco_attributes = a.draco_attributes;
   if (a.has_time) options.time = a.time;
+  options.bake_textures = a.bake_textures;
   options.base_asset = a.base;
   options.atlas_width = a.atlas_width;
   options.fourdgs.iteration = a.iteration;
@@ -163,6 +165,9 @@ atex::cli::Runner SetupConvert(CLI::App& app) {
   atex::cli::AddReal(app, "--time", &a->time, -1e9, 1e9,
                      "Deform to this scene time for .ply/.spz/.drc output (whole field: every enabled head)")
       ->each([a](const std::string&) { a->has_time = true; });
+  app.add_flag("--bake-textures", a->bake_textures,
+               ".ply/.spz/.drc output: bake each textured Gaussian into 1-4 plain Gaussians instead of dropping "
+               "the textures");
   app.add_option("--base", a->base, ".exr input: the asset (.atex/.ply/.spz) whose textures the atlas replaces");
   app.add_option("--atlas-width", a->atlas_width, ".exr output: atlas width in texels (0: square-ish)")
       ->check(CLI::Range(0, 1 << 20));

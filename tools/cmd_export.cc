@@ -30,6 +30,7 @@ struct ExportArgs {
   int meshopt_bits = 0;
   int rotation_bits = 16;
   bool no_textures = false, no_deformation = false, no_raw = false, no_color = false;
+  bool bake_textures = false;
   std::string up;
   int samples = 32;
   int psnr_times = 0;
@@ -75,6 +76,9 @@ int RunExport(const ExportArgs& a) {
   gltf.deformation = !a.no_deformation;
   gltf.raw_parameters = !a.no_raw;
   gltf.color_fallback = !a.no_color;
+  atex::TextureBakeReport bake_report;
+  gltf.bake_textures = a.bake_textures;
+  gltf.bake_report = &bake_report;
   if (!a.up.empty()) {
     auto up = atex::ParseUpAxis(a.up);
     if (!up.ok()) return atex::cli::Fail("export", up.status());
@@ -159,6 +163,13 @@ int RunExport(const ExportArgs& a) {
                                                      "' is not .glb, .gltf or .splatv (or a folder with --frames)"));
   }
   summary["write_seconds"] = Seconds(write_start);
+  const bool baked = a.bake_textures && asset->textures && ext != ".splatv";
+  if (baked) {
+    summary["bake"] = {{"gaussians_in", bake_report.input_gaussians}, {"gaussians_out", bake_report.output_gaussians},
+                       {"folded", bake_report.folded}, {"split", bake_report.split},
+                       {"fold_better", bake_report.fold_better}, {"fit_rms", bake_report.fit_rms},
+                       {"fit_rms_unbaked", bake_report.unbaked_rms}};
+  }
   if (a.json) {
     atex::cli::PrintJson(summary);
   } else {
@@ -166,6 +177,12 @@ int RunExport(const ExportArgs& a) {
                 summary["format"].get<std::string>().c_str(), static_cast<unsigned long long>(asset->gaussians.size()),
                 static_cast<unsigned long long>(summary["bytes"].get<uint64_t>()),
                 summary["write_seconds"].get<double>());
+    if (baked) {
+      std::printf("  textures baked: %zu Gaussians -> %zu (%zu folded, %zu split); fit RMS over the textured "
+                  "ones: %.4f (without baking %.4f)\n",
+                  bake_report.input_gaussians, bake_report.output_gaussians, bake_report.folded, bake_report.split,
+                  bake_report.fit_rms, bake_report.unbaked_rms);
+    }
     if (summary.contains("fit")) {
       const auto& f = summary["fit"];
       std::printf(
@@ -206,6 +223,9 @@ atex::cli::Runner SetupExport(CLI::App& app) {
       ->check(CLI::Range(0, 23));
   app.add_option("--rotation-bits", a->rotation_bits, "glTF: meshopt QUATERNION filter bits")->check(CLI::Range(4, 16));
   app.add_flag("--no-textures", a->no_textures, "glTF: leave out ATEX_gaussian_textures");
+  app.add_flag("--bake-textures", a->bake_textures,
+               "glTF: bake each textured Gaussian into 1-4 plain Gaussians so that players without "
+               "ATEX_gaussian_textures show the texture detail (more Gaussians; no texture extension)");
   app.add_flag("--no-deformation", a->no_deformation, "glTF: leave out the deformation field");
   app.add_flag("--no-raw", a->no_raw, "glTF: leave out the raw parameters (import then inverts the activations)");
   app.add_flag("--no-color", a->no_color, "glTF: leave out the COLOR_0 point-cloud fallback");

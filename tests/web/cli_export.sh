@@ -54,6 +54,21 @@ grep -q "\"gaussians\": $("$atex" info "$scene" --json | python3 -c 'import json
 [ "$(stat -c %s "$work/km.glb")" -lt "$(stat -c %s "$work/k.glb")" ] || fail "--quantize --meshopt is not smaller than --quantize"
 if "$atex" export "$scene" "$work/kz.glb" --quantize --spz > /dev/null 2>&1; then fail "--quantize --spz was accepted"; fi
 ok "quantised export (imports with every Gaussian, smaller; with --meshopt smaller still; not with --spz)"
+# --bake-textures (issue 21 item 5): the import holds the baked count the summary reports, and
+# no texture pool; a --no-textures export imports back too (its metadata says texture_mode none).
+"$atex" export "$scene" "$work/bk.glb" --time 0.5 --bake-textures --json > "$work/bk.json"
+baked_count=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["bake"]["gaussians_out"])' "$work/bk.json")
+"$atex" import "$work/bk.glb" "$work/bk.atex" > /dev/null
+"$atex" info "$work/bk.atex" --json > "$work/bk_info.json"
+python3 - "$work/bk_info.json" "$baked_count" <<'PY' || fail "--bake-textures import: $(cat "$work/bk_info.json")"
+import json, sys
+info = json.load(open(sys.argv[1]))
+assert info["gaussians"] == int(sys.argv[2]), (info["gaussians"], sys.argv[2])
+assert not (info.get("textures") or {}).get("present"), info.get("textures")
+PY
+"$atex" export "$scene" "$work/nt.glb" --time 0.5 --no-textures > /dev/null
+"$atex" import "$work/nt.glb" "$work/nt.atex" > /dev/null || fail "a --no-textures export does not import back"
+ok "--bake-textures round trip ($baked_count Gaussians, no textures); --no-textures imports back"
 
 "$atex" export "$scene" "$work/s.splatv" --samples 16 --json > "$work/s.json"
 grep -q '"position_rms_relative"' "$work/s.json" || fail ".splatv export reports no fit: $(cat "$work/s.json")"

@@ -35,9 +35,10 @@ foreach(check gltf_validator babylon_render splatv_reader)
     LABELS web ENVIRONMENT "ATEX_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
 endforeach()
 
-# Babylon.js draws eight scenes, five of them the 91,490-Gaussian lego (about 25 s each on the
-# CPU machine's software WebGL2).
-set_tests_properties(web_babylon_render PROPERTIES TIMEOUT 420)
+# Babylon.js draws up to twelve scenes, six of them the 91,490-Gaussian lego (about 25 s each on the
+# CPU machine's software WebGL2): plain and with 3DGS's blur, quantised with and without meshopt,
+# baked with either blur.
+set_tests_properties(web_babylon_render PROPERTIES TIMEOUT 600)
 
 # Third-party players in headless Chromium (player_render.mjs PLAYER FIXTURE_DIR); Spark is slow
 # on software WebGL2 (about a minute per lego picture on the CPU machine).

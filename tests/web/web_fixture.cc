@@ -12,6 +12,9 @@
 //   player_lego.*           the lego sample at a test view's time as .glb, .ply and .spz, the
 //                           view's camera and three references (our render, untextured, truth);
 //                           player_lego_quantized*.glb: the same .glb with --quantize (and --meshopt)
+//                           player_lego_baked.glb the same with --bake-textures
+//   textured_tiles*         semi-transparent Gaussians with strong 2x2 textures, exported as is
+//                           and with --bake-textures, their camera and our textured render
 // Usage: atex_web_fixture OUT_DIR   (real data from $ATEX_DATA_DIR or the configured default)
 #include <algorithm>
 #include <cmath>
@@ -113,6 +116,51 @@ atex::Asset LetterF() {
   asset.metadata.axes = "opencv";
   asset.metadata.bounds_min = {-0.5f, -0.9f, -0.1f};
   asset.metadata.bounds_max = {0.6f, 0.9f, 0.1f};
+  return asset;
+}
+
+// Issue 21 item 5: a 5x4 grid of semi-transparent Gaussians (opacity 0.45) in the z = 0 plane of
+// an OpenCV world, each with a 2x2 texture of strong colour ramps (texels ±3: the full ±0.1 of
+// conventions §5) that a KHR_gaussian_splatting player drops unless they are baked.
+atex::Asset TexturedTiles() {
+  atex::Asset asset;
+  atex::Gaussians& g = asset.gaussians;
+  g.sh_degree = 0;
+  constexpr int kCols = 5, kRows = 4;
+  g.Resize(kCols * kRows);
+  atex::TexturePool t;
+  for (int r = 0; r < kRows; ++r) {
+    for (int c = 0; c < kCols; ++c) {
+      const size_t i = size_t(r * kCols + c);
+      g.positions[i * 3 + 0] = float(-0.9 + 0.45 * c);
+      g.positions[i * 3 + 1] = float(-0.675 + 0.45 * r);
+      g.positions[i * 3 + 2] = 0.0f;
+      g.rotations[i * 4 + 0] = 1.0f;
+      g.log_scales[i * 3 + 0] = float(std::log(0.15));
+      g.log_scales[i * 3 + 1] = float(std::log(0.12));
+      g.log_scales[i * 3 + 2] = float(std::log(0.01));
+      g.opacity_logits[i] = float(std::log(0.45 / 0.55));
+      SetColor(g, i, 0.35 + 0.1 * c, 0.6 - 0.1 * r, 0.45);
+      t.heights.push_back(2), t.widths.push_back(2), t.axis_u.push_back(0), t.axis_v.push_back(1);
+    }
+  }
+  t.RebuildOffsets();
+  t.texels.assign(t.texel_count() * 4, 0.0f);
+  for (size_t i = 0; i < g.size(); ++i) {
+    for (int y = 0; y < 2; ++y) {
+      for (int x = 0; x < 2; ++x) {
+        float* texel = &t.texels[(t.offsets[i] + size_t(y * 2 + x)) * 4];
+        const float su = x == 0 ? -3.0f : 3.0f, sv = y == 0 ? -3.0f : 3.0f;
+        // Red ramps along u, green along v, blue along the diagonal (varies with i), opacity along u.
+        texel[0] = su, texel[1] = sv, texel[2] = (i % 2 == 0) ? su * sv / 3 : -su, texel[3] = su;
+      }
+    }
+  }
+  asset.textures = t;
+  asset.metadata.axes = "opencv";
+  asset.metadata.texture_mode = "adaptive";
+  asset.metadata.bounds_min = {-1.2f, -1.0f, -0.1f};
+  asset.metadata.bounds_max = {1.2f, 1.0f, 0.1f};
   return asset;
 }
 
@@ -260,6 +308,35 @@ int main(int argc, char** argv) {
     manifest["validator"].push_back("letter_f_meshopt.glb");
   }
 
+  // 2b. Textures baked for KHR-only players (issue 21 item 5): the textured tiles exported as is
+  //     (Babylon.js drops ATEX_gaussian_textures) and with --bake-textures, the F's camera, and our
+  //     textured render as the reference.
+  {
+    const atex::Asset tiles = TexturedTiles();
+    atex::Camera camera;
+    camera.width = 320, camera.height = 240;
+    camera.fx = camera.fy = 260, camera.cx = 160, camera.cy = 120;
+    camera.world_to_camera = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 3, 0, 0, 0, 1};
+    atex::GltfExportOptions baked;
+    baked.bake_textures = true;
+    atex::Status s = atex::WriteGltfFile((out / "textured_tiles.glb").string(), tiles);
+    if (s.ok()) s = atex::WriteGltfFile((out / "textured_tiles_baked.glb").string(), tiles, baked);
+    if (s.ok()) s = RenderReference(tiles, camera, out / "textured_tiles_atex.png");
+    atex::Asset untextured = tiles;
+    untextured.textures.reset();
+    untextured.metadata.texture_mode = "none";
+    if (s.ok()) s = RenderReference(untextured, camera, out / "textured_tiles_untextured.png");
+    if (!s.ok()) return Fail("textured tiles", s);
+    json cam = CameraJson(camera);
+    cam["background"] = {0, 0, 0};
+    cam["pose"] = {{"gltf", {{"position", {0, 0, 3}}, {"target", {0, 0, 0}}, {"up", {0, 1, 0}}}}};
+    s = WriteText(out / "textured_tiles_camera.json", cam.dump(2));
+    if (!s.ok()) return Fail("textured tiles camera", s);
+    manifest["textured_tiles"] = {{"glb", "textured_tiles.glb"}, {"baked_glb", "textured_tiles_baked.glb"},
+                                  {"camera", "textured_tiles_camera.json"}, {"reference", "textured_tiles_atex.png"},
+                                  {"untextured", "textured_tiles_untextured.png"}, {"gaussians", tiles.gaussians.size()}};
+  }
+
   // 3. Real data: garden points and camera.
   const char* data_env = std::getenv("ATEX_DATA_DIR");
   const char* data_default = std::getenv("ATEX_DATA_DIR_DEFAULT");
@@ -369,6 +446,10 @@ int main(int argc, char** argv) {
     atex::GltfExportOptions options;
     options.time = view.camera.time;
     if (s.ok()) s = atex::WriteGltfFile((out / "player_lego.glb").string(), *sample, options);
+    // Issue 21 item 5: the same with the textures baked into plain Gaussians (`--bake-textures`).
+    atex::GltfExportOptions baked_options = options;
+    baked_options.bake_textures = true;
+    if (s.ok()) s = atex::WriteGltfFile((out / "player_lego_baked.glb").string(), *sample, baked_options);
     // The same as `atex export --quantize [--meshopt]` writes it (KHR_mesh_quantization).
     options.quantize = true;
     if (s.ok()) s = atex::WriteGltfFile((out / "player_lego_quantized.glb").string(), *sample, options);
@@ -400,6 +481,8 @@ int main(int argc, char** argv) {
     manifest["player_lego_quantized"] = {{"glb", "player_lego_quantized.glb"},
                                          {"glb_meshopt", "player_lego_quantized_meshopt.glb"}};
     manifest["validator"].push_back("player_lego_quantized.glb");
+    manifest["player_lego_baked"] = manifest["player_lego"];
+    manifest["player_lego_baked"]["glb"] = "player_lego_baked.glb";
   }
 
   if (atex::Status s = WriteText(out / "manifest.json", manifest.dump(2)); !s.ok()) return Fail("manifest", s);

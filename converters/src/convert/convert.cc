@@ -11,6 +11,7 @@
 #include "atex/converters/drc.h"
 #include "atex/converters/exr_atlas.h"
 #include "atex/converters/ply.h"
+#include "atex/converters/texture_bake.h"
 #include "atex/converters/web_splats.h"
 #include "atex/deform.h"
 #include "atex/file_io.h"
@@ -230,7 +231,17 @@ Status WriteAssetAs(const std::string& path, const Asset& asset, FileFormat form
     case FileFormat::kSpz:
     case FileFormat::kDraco: {
       ATEX_ASSIGN_OR_RETURN(Gaussians g, GaussiansForOutput(asset, options, report));
-      NoteDropped(asset, report);
+      const bool bake = options.bake_textures && asset.textures.has_value();
+      if (bake) {
+        TextureBakeReport baked;
+        ATEX_ASSIGN_OR_RETURN(g, BakeTextures(g, *asset.textures, {}, &baked));
+        if (report) {
+          report->notes.push_back(StrCat("textures baked: ", baked.input_gaussians, " Gaussians -> ",
+                                         baked.output_gaussians, " (", baked.split, " split, ", baked.folded,
+                                         " folded)"));
+        }
+      }
+      NoteDropped(asset, report, /*baked=*/false, /*textures_baked=*/bake);
       if (report) report->convert_seconds += SecondsSince(convert_start);
       ATEX_RETURN_IF_ERROR(Progress(options, "write", 0.0));
       const auto write_start = Clock::now();
@@ -295,6 +306,8 @@ StatusOr<ConvertReport> ConvertFile(const std::string& input, const std::string&
   ConvertReport report;
   ATEX_ASSIGN_OR_RETURN(report.from, Resolve(options.from, input, "input"));
   if (options.frames) {
+    if (options.bake_textures)
+      return MakeError(StatusCode::kInvalidArgument, "--bake-textures is not available with --frames (use --time)");
     // The output is a folder: its name says nothing about the frames' format.
     report.to = options.to == FileFormat::kUnknown ? FileFormat::kPly : options.to;
     if (report.to != FileFormat::kPly && report.to != FileFormat::kSpz) {

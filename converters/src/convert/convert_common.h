@@ -27,11 +27,11 @@ inline constexpr const char* kTexturesDroppedWarning =
     "textures dropped: .ply/.spz/.drc cannot hold them, so the output renders as plain 4DGS without the "
     "per-Gaussian texture detail";
 
-inline  // `baked`: the deformation went into the output (per-frame export), not dropped.
-    void
-    NoteDropped(const Asset& asset, ConvertReport* report, bool baked = false) {
+// `baked`: the deformation went into the output (per-frame export), not dropped;
+// `textures_baked`: the textures went into the Gaussians (BakeTextures), not dropped.
+inline void NoteDropped(const Asset& asset, ConvertReport* report, bool baked = false, bool textures_baked = false) {
   if (report == nullptr) return;
-  if (asset.textures) {
+  if (asset.textures && !textures_baked) {
     report->dropped.push_back("textures");
     report->warnings.push_back(kTexturesDroppedWarning);
   }

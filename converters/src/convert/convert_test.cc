@@ -11,6 +11,7 @@
 #include "atex/converters/exr_atlas.h"
 #include "atex/converters/ply.h"
 #include "atex/converters/spz.h"
+#include "atex/converters/texture_bake.h"
 #include "atex/deform.h"
 #include "atex/file_io.h"
 #include "convert/test_gaussians.h"
@@ -145,6 +146,43 @@ TEST(Convert, TextureAtlasOutAndBackIn) {
   ASSERT_TRUE(r3.ok());
   ASSERT_EQ(r3->dropped.size(), 1u);
   EXPECT_EQ(r3->dropped[0], "textures");
+}
+
+// --bake-textures to .ply: the textured Gaussians are baked (texture_bake.h), not dropped, and
+// the file holds the baked count; with --frames the option is refused.
+TEST(Convert, BakeTexturesToPly) {
+  testing::TempDir dir;
+  Asset asset;
+  asset.gaussians = RandomGaussians(30, 0, 7);
+  TexturePool pool;
+  for (size_t i = 0; i < 30; ++i) {
+    pool.heights.push_back(i % 2 == 0 ? 2 : 1);
+    pool.widths.push_back(i % 2 == 0 ? 2 : 1);
+    pool.axis_u.push_back(0);
+    pool.axis_v.push_back(1);
+  }
+  pool.RebuildOffsets();
+  for (uint64_t t = 0; t < pool.texel_count() * 4; ++t) pool.texels.push_back((t / 4) % 2 == 0 ? 3.0f : -3.0f);
+  asset.textures = pool;
+  asset.metadata.texture_mode = "adaptive";
+  const std::string atex = (dir / "t.atex").string(), ply = (dir / "t.ply").string();
+  ASSERT_TRUE(WriteAssetFile(atex, asset).ok());
+  ConvertOptions options;
+  options.bake_textures = true;
+  auto r = ConvertFile(atex, ply, options);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_TRUE(r->dropped.empty());
+  EXPECT_TRUE(r->warnings.empty());
+  auto read = ReadAssetFile(atex);
+  ASSERT_TRUE(read.ok());
+  auto baked = BakeTextures(read->gaussians, *read->textures);
+  ASSERT_TRUE(baked.ok());
+  EXPECT_GT(baked->size(), 30u);  // some 2x2 textures split
+  auto back = ReadPlyGaussians(ply);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(back->size(), baked->size());
+  options.frames = FrameRange{0, 1, 0.5};
+  EXPECT_EQ(ConvertFile(atex, (dir / "frames").string(), options).status().code(), StatusCode::kInvalidArgument);
 }
 
 TEST(Convert, DracoOutput) {

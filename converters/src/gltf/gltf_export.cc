@@ -378,6 +378,14 @@ Status SplatExporter::Build(const Asset& asset) {
       return MakeError(StatusCode::kInternal, "deformation returned ", deformed.size(), " Gaussians, expected ", n);
     shown = &deformed;
   }
+  Gaussians baked;
+  const bool bake = options_.bake_textures && asset.textures.has_value();
+  if (bake) {
+    ATEX_ASSIGN_OR_RETURN(baked, BakeTextures(*shown, *asset.textures, options_.bake, options_.bake_report));
+    if (baked.size() > UINT32_MAX)
+      return MakeError(StatusCode::kLimitExceeded, "glTF export: ", baked.size(), " baked Gaussians exceed 2^32");
+    shown = &baked;
+  }
   ATEX_RETURN_IF_ERROR(Progress(0.2));
 
   json attributes = json::object();
@@ -388,7 +396,7 @@ Status SplatExporter::Build(const Asset& asset) {
     ATEX_RETURN_IF_ERROR(AddBase(*shown, attributes));
   }
   ATEX_RETURN_IF_ERROR(Progress(0.6));
-  if (options_.textures && asset.textures)
+  if (options_.textures && asset.textures && !bake)
     ATEX_RETURN_IF_ERROR(AddTextures(*asset.textures, n, attributes, khr_extensions));
   const DeformationField* field =
       (options_.deformation && !options_.time && asset.deformation) ? &*asset.deformation : nullptr;
@@ -424,8 +432,13 @@ Status SplatExporter::Build(const Asset& asset) {
   doc["nodes"] = json::array({node});
   doc["scenes"] = json::array({{{"nodes", json::array({0})}}});
   doc["scene"] = 0;
-  json atex = {{"version", gltf::kAtexGltfVersion}, {"metadata", MetadataToJson(asset.metadata)}};
+  Metadata metadata = asset.metadata;
+  // No texture extension written (baked into the Gaussians, or left out): the metadata must not
+  // promise one, or our importer refuses the file.
+  if (bake || !options_.textures) metadata.texture_mode = "none";
+  json atex = {{"version", gltf::kAtexGltfVersion}, {"metadata", MetadataToJson(metadata)}};
   if (options_.time) atex["bakedTime"] = *options_.time;
+  if (bake) atex["bakedTextures"] = {{"sourceGaussians", n}, {"gaussians", shown->size()}};
   if (options_.up) {
     static const char* kUpNames[] = {"+y", "-y", "+z", "-z"};
     atex["up"] = kUpNames[static_cast<int>(up)];

@@ -111,6 +111,9 @@ struct ConvertOptions {
   int draco_bits = 16;                     // Draco position quantisation bits
   bool draco_attributes = false;           // also colour, opacity, log-scale, rotation
   std::optional<double> time;              // .ply/.spz/.drc output: deform to this scene time
+  // .ply/.spz/.drc output: bake the textures into plain Gaussians (BakeTextures, texture_bake.h)
+  // instead of dropping them. Not with `frames` (kInvalidArgument).
+  bool bake_textures = false;
   std::string base_asset;                  // .exr input: the asset whose texture pool the atlas replaces
   int atlas_width = 0;                     // .exr output: 0 picks a square-ish atlas
   WriteOptions atex;                       // .atex output

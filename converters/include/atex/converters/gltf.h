@@ -42,6 +42,7 @@
 #include <string>
 #include <vector>
 
+#include "atex/converters/texture_bake.h"
 #include "atex/model.h"
 #include "atex/status.h"
 
@@ -87,6 +88,16 @@ struct GltfExportOptions {
   bool raw_parameters = true;  // write ATEX_gaussian_deformation's raw attributes (bit-exact import)
   bool color_fallback = true;  // write COLOR_0
   std::optional<UpAxis> up;    // override the asset's up axis (UpAxisOf)
+
+  // Bake the textures into plain Gaussians (BakeTextures, texture_bake.h) so that a player that
+  // knows only KHR_gaussian_splatting shows their detail: the base attributes hold the baked
+  // Gaussians (more of them), ATEX_gaussian_textures is not written, and the raw parameters
+  // describe the baked Gaussians. Without `time` the bake uses the canonical Gaussians, and a
+  // written deformation field moves each baked Gaussian by its own centre (an approximation of
+  // the textured parent's motion). No effect on an asset without textures.
+  bool bake_textures = false;
+  TextureBakeOptions bake;
+  TextureBakeReport* bake_report = nullptr;  // filled when baking, if set
 
   // KHR_gaussian_splatting_compression_spz_2: the base attributes as one SPZ stream (~20 bytes per
   // Gaussian at SH degree 3; lossy: 24-bit positions, 8-bit scales, rotations, opacity and colour,
