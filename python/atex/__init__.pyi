@@ -208,7 +208,8 @@ def convert(input: str, output: str, *, from_format: str = "", to_format: str = 
             progress: Optional[Callable[[str, float], Optional[bool]]] = None) -> Dict[str, Any]: ...
 
 def export_gltf(asset: Asset, path: str, *, spz: bool = False, meshopt: bool = False, meshopt_bits: int = 0,
-                time: Optional[float] = None, textures: bool = True, deformation: bool = True, raw: bool = True,
+                quantize: bool = False, bake_textures: bool = False, time: Optional[float] = None,
+                textures: bool = True, deformation: bool = True, raw: bool = True,
                 up: Optional[str] = None) -> Dict[str, Any]: ...
 
 def orbit_camera(asset: Asset, azimuth_deg: float = 30.0, elevation_deg: float = 20.0, width: int = 256,

@@ -44,3 +44,27 @@ def test_export_refuses_bad_options(sample, tmp_path):
     with pytest.raises(atex.Error):
         atex.export_gltf(sample, str(tmp_path / "y.glb"), up="sideways")
     assert not (tmp_path / "x.glb").exists() and not (tmp_path / "y.glb").exists()
+
+
+def test_export_quantized_and_baked(sample, tmp_path):
+    plain, quantized = tmp_path / "plain.glb", tmp_path / "quantized.glb"
+    atex.export_gltf(sample, str(plain))
+    report = atex.export_gltf(sample, str(quantized), quantize=True)
+    assert report["quantize"] and not report["bake_textures"]
+    doc = glb_json(quantized)
+    assert "KHR_mesh_quantization" in doc["extensionsRequired"]
+    position = doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]
+    assert position["componentType"] in (5120, 5122)  # BYTE or SHORT, not FLOAT
+    assert position["count"] == sample.gaussian_count
+    assert quantized.stat().st_size < plain.stat().st_size
+    with pytest.raises(atex.Error):
+        atex.export_gltf(sample, str(tmp_path / "qz.glb"), quantize=True, spz=True)
+
+    baked = tmp_path / "baked.glb"
+    report = atex.export_gltf(sample, str(baked), time=0.5, bake_textures=True)
+    assert report["bake_textures"]
+    doc = glb_json(baked)
+    assert "ATEX_gaussian_textures" not in doc.get("extensionsUsed", [])
+    assert "ATEX_gaussian_textures" in glb_json(plain).get("extensionsUsed", [])
+    count = doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]["count"]
+    assert count >= sample.gaussian_count  # a textured Gaussian becomes one to four plain ones
