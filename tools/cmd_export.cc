@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <memory>
+#include <optional>
 
 #include "atex/container.h"
 #include "atex/converters/convert.h"
@@ -59,6 +60,71 @@ atex::Status CheckExportOutputs(const ExportArgs& a) {
   return atex::Status::Ok();
 }
 
+// --frames: one .glb per time of the range in the folder `a.output`, and frames.json listing them.
+int ExportFrames(const ExportArgs& a, const atex::Asset& asset, atex::GltfExportOptions gltf, nlohmann::json& summary) {
+  const std::filesystem::path out(a.output);
+  // The same START:END:STEP grammar as `atex convert --frames`.
+  auto range = atex::ParseFrameRange(a.frames);
+  if (!range.ok()) return atex::cli::Fail("export", range.status());
+  const std::vector<double> times = range->Times();
+  if (!asset.deformation) {
+    return atex::cli::Fail(
+        "export", atex::MakeError(atex::StatusCode::kInvalidArgument, "--frames needs an asset with motion"));
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(out, ec);
+  if (ec)
+    return atex::cli::Fail(
+        "export", atex::MakeError(atex::StatusCode::kIoError, "cannot create folder ", a.output, ": ", ec.message()));
+  atex::cli::Progress progress("export frames", static_cast<long long>(times.size()));
+  nlohmann::json frames = nlohmann::json::array();
+  uint64_t total = 0;
+  for (size_t i = 0; i < times.size(); ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%04zu.glb", i);
+    gltf.time = times[i];
+    auto bytes = atex::EncodeGlb(asset, gltf);
+    if (!bytes.ok()) return atex::cli::Fail("export", bytes.status().WithContext(name));
+    atex::Status s = atex::WriteFileAtomic((out / name).string(), *bytes);
+    if (!s.ok()) return atex::cli::Fail("export", s);
+    total += bytes->size();
+    frames.push_back({{"file", name}, {"time", times[i]}});
+    if (i + 1 < times.size()) progress.Update(static_cast<long long>(i + 1));
+  }
+  progress.Finish();
+  const nlohmann::json manifest = {{"generator", "atex 0.1.0"}, {"format", "glb sequence"}, {"frames", frames}};
+  const std::string text = manifest.dump(2);
+  atex::Status s = atex::WriteFileAtomic((out / "frames.json").string(), text.data(), text.size());
+  if (!s.ok()) return atex::cli::Fail("export", s);
+  summary["format"] = "glb sequence";
+  summary["frames"] = times.size();
+  summary["bytes"] = total;
+  return atex::cli::kExitOk;
+}
+
+// .splatv: the motion fitted per Gaussian (atex/converters/splatv.h), with a progress bar.
+int ExportSplatv(const ExportArgs& a, const atex::Asset& asset, std::optional<atex::UpAxis> up,
+                 nlohmann::json& summary) {
+  const std::filesystem::path out(a.output);
+  atex::SplatvOptions options;
+  options.samples = a.samples;
+  options.up = up;
+  options.psnr_times = a.psnr_times;
+  atex::cli::Progress progress("fit motion", 1000);
+  options.progress = [&progress](double f) {
+    progress.Update(std::min(999LL, static_cast<long long>(f * 1000)));  // Finish() draws the end
+    return true;
+  };
+  atex::SplatvFitReport report;
+  atex::Status s = atex::WriteSplatvFile(a.output, asset, options, &report);
+  progress.Finish();
+  if (!s.ok()) return atex::cli::Fail("export", s);
+  summary["format"] = "splatv";
+  summary["bytes"] = std::filesystem::file_size(out);
+  summary["fit"] = report.ToJson();
+  return atex::cli::kExitOk;
+}
+
 int RunExport(const ExportArgs& a) {
   const auto start = std::chrono::steady_clock::now();
   if (atex::Status s = CheckExportOutputs(a); !s.ok()) return atex::cli::Fail("export", s, a.output);
@@ -95,42 +161,7 @@ int RunExport(const ExportArgs& a) {
   const auto write_start = std::chrono::steady_clock::now();
 
   if (!a.frames.empty()) {
-    // The same START:END:STEP grammar as `atex convert --frames`.
-    auto range = atex::ParseFrameRange(a.frames);
-    if (!range.ok()) return atex::cli::Fail("export", range.status());
-    const std::vector<double> times = range->Times();
-    if (!asset->deformation) {
-      return atex::cli::Fail(
-          "export", atex::MakeError(atex::StatusCode::kInvalidArgument, "--frames needs an asset with motion"));
-    }
-    std::error_code ec;
-    std::filesystem::create_directories(out, ec);
-    if (ec)
-      return atex::cli::Fail(
-          "export", atex::MakeError(atex::StatusCode::kIoError, "cannot create folder ", a.output, ": ", ec.message()));
-    atex::cli::Progress progress("export frames", static_cast<long long>(times.size()));
-    nlohmann::json frames = nlohmann::json::array();
-    uint64_t total = 0;
-    for (size_t i = 0; i < times.size(); ++i) {
-      char name[32];
-      std::snprintf(name, sizeof name, "frame_%04zu.glb", i);
-      gltf.time = times[i];
-      auto bytes = atex::EncodeGlb(*asset, gltf);
-      if (!bytes.ok()) return atex::cli::Fail("export", bytes.status().WithContext(name));
-      atex::Status s = atex::WriteFileAtomic((out / name).string(), *bytes);
-      if (!s.ok()) return atex::cli::Fail("export", s);
-      total += bytes->size();
-      frames.push_back({{"file", name}, {"time", times[i]}});
-      if (i + 1 < times.size()) progress.Update(static_cast<long long>(i + 1));
-    }
-    progress.Finish();
-    const nlohmann::json manifest = {{"generator", "atex 0.1.0"}, {"format", "glb sequence"}, {"frames", frames}};
-    const std::string text = manifest.dump(2);
-    atex::Status s = atex::WriteFileAtomic((out / "frames.json").string(), text.data(), text.size());
-    if (!s.ok()) return atex::cli::Fail("export", s);
-    summary["format"] = "glb sequence";
-    summary["frames"] = times.size();
-    summary["bytes"] = total;
+    if (int code = ExportFrames(a, *asset, gltf, summary); code != atex::cli::kExitOk) return code;
   } else if (ext == ".glb" || ext == ".gltf") {
     atex::Status s = atex::WriteGltfFile(a.output, *asset, gltf);
     if (!s.ok()) return atex::cli::Fail("export", s);
@@ -142,22 +173,7 @@ int RunExport(const ExportArgs& a) {
     summary["spz"] = a.spz;
     summary["quantize"] = a.quantize;
   } else if (ext == ".splatv") {
-    atex::SplatvOptions options;
-    options.samples = a.samples;
-    options.up = gltf.up;
-    options.psnr_times = a.psnr_times;
-    atex::cli::Progress progress("fit motion", 1000);
-    options.progress = [&progress](double f) {
-      progress.Update(std::min(999LL, static_cast<long long>(f * 1000)));  // Finish() draws the end
-      return true;
-    };
-    atex::SplatvFitReport report;
-    atex::Status s = atex::WriteSplatvFile(a.output, *asset, options, &report);
-    progress.Finish();
-    if (!s.ok()) return atex::cli::Fail("export", s);
-    summary["format"] = "splatv";
-    summary["bytes"] = std::filesystem::file_size(out);
-    summary["fit"] = report.ToJson();
+    if (int code = ExportSplatv(a, *asset, gltf.up, summary); code != atex::cli::kExitOk) return code;
   } else {
     return atex::cli::Fail("export", atex::MakeError(atex::StatusCode::kInvalidArgument, "output '", a.output,
                                                      "' is not .glb, .gltf or .splatv (or a folder with --frames)"));

@@ -334,7 +334,8 @@ Status CheckInputs(const Gaussians& g, const TexturePool& t, const TextureBakeOp
 void AppendChild(const Gaussians& g, size_t i, const std::array<double, 3>& offset,
                  const std::array<double, 3>& log_scale_delta, float logit, const std::array<double, 3>& dc,
                  Gaussians* out) {
-  for (int k = 0; k < 3; ++k) out->positions.push_back(float(double(g.positions[i * 3 + size_t(k)]) + offset[size_t(k)]));
+  for (int k = 0; k < 3; ++k)
+    out->positions.push_back(float(double(g.positions[i * 3 + size_t(k)]) + offset[size_t(k)]));
   for (int k = 0; k < 4; ++k) out->rotations.push_back(g.rotations[i * 4 + size_t(k)]);
   for (int k = 0; k < 3; ++k)
     out->log_scales.push_back(float(double(g.log_scales[i * 3 + size_t(k)]) + log_scale_delta[size_t(k)]));
@@ -403,7 +404,8 @@ StatusOr<Gaussians> BakeTextures(const Gaussians& g, const TexturePool& t, const
         continue;
       }
       const float* q = &g.rotations[i * 4];
-      const double qn = std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
+      const double qn =
+          std::sqrt(double(q[0]) * q[0] + double(q[1]) * q[1] + double(q[2]) * q[2] + double(q[3]) * q[3]);
       const detail::Mat3<double> rot =
           qn > 0 ? detail::QuaternionToRotation(detail::Vec4<double>{{q[0], q[1], q[2], q[3]}})
                  : detail::Mat3<double>{{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}};
