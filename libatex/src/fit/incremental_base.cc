@@ -78,12 +78,16 @@ void IncrementalProbes::CommitUnchecked(const Pending& pending) {
       if (i < pp.tiles.size() && size_t(pp.tiles[i]) == t) {
         nb.tile_list.insert(nb.tile_list.end(), pp.lists.begin() + pp.list_ranges[i],
                             pp.lists.begin() + pp.list_ranges[i + 1]);
+        nb.tile_depth.insert(nb.tile_depth.end(), pp.list_depths.begin() + pp.list_ranges[i],
+                             pp.list_depths.begin() + pp.list_ranges[i + 1]);
         ++i;
       } else if (!old.tile_ranges.empty()) {
         // An unaffected tile holds only unchanged survivors.
         for (uint64_t e = old.tile_ranges[t]; e < old.tile_ranges[t + 1]; ++e) {
           nb.tile_list.push_back(cand_of[old.tile_list[e]]);
         }
+        nb.tile_depth.insert(nb.tile_depth.end(), old.tile_depth.begin() + old.tile_ranges[t],
+                             old.tile_depth.begin() + old.tile_ranges[t + 1]);
       }
       nb.tile_ranges[t + 1] = nb.tile_list.size();
     }

@@ -69,13 +69,20 @@ void CompositePixels(const detail::CameraModel<float>& cam, int t, const TileLis
   const detail::SplatParams<float>* splats = list.splats;
   const int count = list.count;
   const bool textured = count > 0 && splats[0].frame != nullptr;  // all or none of a render's splats are
+  // What the skip test reads of each splat, packed (the loop below tests many splats per
+  // pixel and evaluates few of them): the same values, so the same test.
+  struct SkipTest {
+    float mean_x, mean_y, conic[3], skip_below;
+    int k;  // in `list`
+  };
   // Blocks of kBlock × kBlock pixels walk only the splats whose box meets the block: the
   // others fail the skip test at each of its pixels, where the reference loop passes them by.
+  // Each block holds its splats' tests in list order, contiguous.
   constexpr int kBlock = 4, kBlocks = detail::kTileSize / kBlock;
-  thread_local std::vector<int> near[kBlocks * kBlocks];  // per block of the tile; empty when unmarked
+  thread_local std::vector<SkipTest> near[kBlocks * kBlocks];  // per block of the tile; empty when unmarked
   for (int by = 0; by < kBlocks; ++by) {
     for (int bx = 0; bx < kBlocks; ++bx) {
-      std::vector<int>& list_of_block = near[by * kBlocks + bx];
+      std::vector<SkipTest>& list_of_block = near[by * kBlocks + bx];
       list_of_block.clear();
       const PixelBox block{tile.x0 + bx * kBlock, std::min(tile.x0 + (bx + 1) * kBlock, tile.x1),
                            tile.y0 + by * kBlock, std::min(tile.y0 + (by + 1) * kBlock, tile.y1)};
@@ -88,7 +95,11 @@ void CompositePixels(const detail::CameraModel<float>& cam, int t, const TileLis
       if (!marked) continue;
       for (int k = 0; k < count; ++k) {
         const PixelBox& b = list.reach[k].box;
-        if (b.x0 < block.x1 && block.x0 < b.x1 && b.y0 < block.y1 && block.y0 < b.y1) list_of_block.push_back(k);
+        if (b.x0 < block.x1 && block.x0 < b.x1 && b.y0 < block.y1 && block.y0 < b.y1) {
+          const auto& sp = splats[k];
+          list_of_block.push_back(
+              {sp.mean2d[0], sp.mean2d[1], {sp.conic[0], sp.conic[1], sp.conic[2]}, list.reach[k].skip_below, k});
+        }
       }
     }
   }
@@ -103,11 +114,12 @@ void CompositePixels(const detail::CameraModel<float>& cam, int t, const TileLis
       float transmittance = 1.0f;
       detail::Vec3<float> c{{0.0f, 0.0f, 0.0f}};
       StopKey stop = kNeverStopped;
-      for (int k : near[((y - tile.y0) / kBlock) * kBlocks + (x - tile.x0) / kBlock]) {
-        const auto& sp = splats[k];
-        const float power = detail::GaussianPower(sp.conic, px - sp.mean2d[0], py - sp.mean2d[1]);
-        if (power < list.reach[k].skip_below) continue;
-        const detail::SplatSample<float> s = detail::EvaluateSplat(sp, px, py, ray);
+      for (const SkipTest& test : near[((y - tile.y0) / kBlock) * kBlocks + (x - tile.x0) / kBlock]) {
+        const int k = test.k;
+        const detail::Vec3<float> conic{{test.conic[0], test.conic[1], test.conic[2]}};
+        const float power = detail::GaussianPower(conic, px - test.mean_x, py - test.mean_y);
+        if (power < test.skip_below) continue;
+        const detail::SplatSample<float> s = detail::EvaluateSplat(splats[k], px, py, ray);
         if (!s.contributes) continue;
         const float next = transmittance * (1.0f - s.alpha);
         if (next < float(detail::kMinTransmittance)) {
