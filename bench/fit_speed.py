@@ -34,12 +34,17 @@ def parse_size(text):
     return int(float(number) * units[unit])
 
 
-def run_fit(binary, input_path, output, budget, fit_args):
-    """Wall seconds, CPU seconds (user + system, less sensitive to a shared machine) and the report."""
+def run_fit(binary, input_path, output, budget, fit_args, threads=0):
+    """Wall seconds, CPU seconds (user + system, less sensitive to a shared machine) and the report.
+
+    threads > 0 sets OMP_NUM_THREADS for the fit (0: the environment's)."""
     cmd = [binary, "fit", input_path, output, "--budget", budget, "--json"] + fit_args
+    env = dict(os.environ)
+    if threads > 0:
+        env["OMP_NUM_THREADS"] = str(threads)
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.monotonic()
-    proc = subprocess.run(cmd, capture_output=True, text=True)
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
     seconds = time.monotonic() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -70,6 +75,8 @@ def main():
     p.add_argument("--data", default="", help="dataset for the outputs' test PSNR (atex eval), optional")
     p.add_argument("--repeats", type=int, default=1, help="fits per binary and budget (alternating old/new)")
     p.add_argument("--fit-args", default="", help="extra arguments for atex fit (one string)")
+    p.add_argument("--threads", type=int, default=0,
+                   help="OMP_NUM_THREADS for the fits (default 0: as the environment sets it)")
     p.add_argument("--out", default="", help="JSON lines of the rows")
     a = p.parse_args()
 
@@ -80,14 +87,16 @@ def main():
                 for label, binary in (("old", a.old), ("new", a.new)):
                     out = os.path.join(tmp, f"{label}_{budget}_{r}.atex")
                     load_before = os.getloadavg()[0]
-                    seconds, cpu, report = run_fit(binary, a.input, out, budget, a.fit_args.split())
+                    seconds, cpu, report = run_fit(binary, a.input, out, budget, a.fit_args.split(), a.threads)
                     load_after = os.getloadavg()[0]
                     size = os.path.getsize(out)
                     with open(out, "rb") as f:
                         digest = hashlib.sha256(f.read()).hexdigest()
                     timing = report.get("plan_timing", [{}])[0]
                     row = {"binary": label, "path": binary, "budget": budget, "budget_bytes": parse_size(budget),
-                           "repeat": r, "wall_s": round(seconds, 3), "cpu_s": round(cpu, 3), "bytes": size,
+                           "repeat": r, "threads": a.threads or os.environ.get("OMP_NUM_THREADS", "default"),
+                           "cores": os.cpu_count(),
+                           "wall_s": round(seconds, 3), "cpu_s": round(cpu, 3), "bytes": size,
                            "within_budget": size <= parse_size(budget), "verify": verify(a.new, out),
                            "measurements": timing.get("measurements"),
                            "plan_s": timing.get("seconds", {}).get("total"),

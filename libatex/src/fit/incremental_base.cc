@@ -63,14 +63,24 @@ void IncrementalProbes::CommitUnchecked(const Pending& pending) {
       texels.offset.push_back(texels.values.size() / 4);
     }
   }
+  // The splats move within their arrays when every kept one moves down or stays (a prune,
+  // a change of values): candidate j reads base Gaussian base_of[j] >= j, which no earlier
+  // candidate has written. Otherwise (new Gaussians before kept ones) into new arrays.
+  bool in_place = probes_.size() == pending.probes.size();
+  for (size_t j = 0; j < n && in_place; ++j) {
+    in_place = pending.base_of[j] == kNoBase ? fresh_of[j] != kNoBase : pending.base_of[j] >= j;
+  }
+  for (size_t p = 0; p < probes_.size() && in_place; ++p) in_place = probes_[p].splats.size() >= n;
   std::vector<ProbeBase> probes(pending.probes.size());
   for (size_t p = 0; p < probes.size(); ++p) {
     const PendingProbe& pp = pending.probes[p];
     const ProbeBase& old = probes_[p];
     ProbeBase& nb = probes[p];
-    nb.splats.resize(n);
-    for (size_t j = 0; j < n; ++j) {
-      nb.splats[j] = fresh_of[j] != kNoBase ? pp.fresh[fresh_of[j]] : old.splats[pending.base_of[j]];
+    if (!in_place) {
+      nb.splats.resize(n);
+      for (size_t j = 0; j < n; ++j) {
+        nb.splats[j] = fresh_of[j] != kNoBase ? pp.fresh[fresh_of[j]] : old.splats[pending.base_of[j]];
+      }
     }
     const size_t tiles = size_t(pp.tiles_total);
     nb.tile_ranges.assign(tiles + 1, 0);
@@ -78,17 +88,35 @@ void IncrementalProbes::CommitUnchecked(const Pending& pending) {
       if (i < pp.tiles.size() && size_t(pp.tiles[i]) == t) {
         nb.tile_list.insert(nb.tile_list.end(), pp.lists.begin() + pp.list_ranges[i],
                             pp.lists.begin() + pp.list_ranges[i + 1]);
+        nb.tile_depth.insert(nb.tile_depth.end(), pp.list_depths.begin() + pp.list_ranges[i],
+                             pp.list_depths.begin() + pp.list_ranges[i + 1]);
         ++i;
       } else if (!old.tile_ranges.empty()) {
         // An unaffected tile holds only unchanged survivors.
         for (uint64_t e = old.tile_ranges[t]; e < old.tile_ranges[t + 1]; ++e) {
           nb.tile_list.push_back(cand_of[old.tile_list[e]]);
         }
+        nb.tile_depth.insert(nb.tile_depth.end(), old.tile_depth.begin() + old.tile_ranges[t],
+                             old.tile_depth.begin() + old.tile_ranges[t + 1]);
       }
       nb.tile_ranges[t + 1] = nb.tile_list.size();
     }
     nb.color = pp.color;
     nb.stops = pp.stops;
+  }
+  // Nothing allocates from here (the resize only shrinks): the base changes whole or not at all.
+  for (size_t p = 0; p < probes.size() && in_place; ++p) {
+    const PendingProbe& pp = pending.probes[p];
+    std::vector<Splat>& splats = probes_[p].splats;
+    for (size_t j = 0; j < n; ++j) {
+      if (fresh_of[j] != kNoBase) {
+        splats[j] = pp.fresh[fresh_of[j]];
+      } else if (pending.base_of[j] != j) {
+        splats[j] = splats[pending.base_of[j]];
+      }
+    }
+    splats.resize(n);
+    probes[p].splats = std::move(splats);
   }
   probes_ = std::move(probes);
   texels_ = std::move(texels);

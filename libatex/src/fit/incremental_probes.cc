@@ -19,6 +19,16 @@ namespace {
 
 constexpr uint32_t kFresh = 0x80000000u;  // tile-list entry: a changed splat (index into `changed`)
 
+// Asks for the cache line of `p` ahead of its use. GCC 12 drops a __builtin_prefetch
+// behind a branch as dead code, so on x86 the instruction is written out.
+inline void Prefetch(const void* p) {
+#if defined(__x86_64__) || defined(__i386__)
+  asm volatile("prefetcht0 %0" : : "m"(*static_cast<const char*>(p)));
+#else
+  __builtin_prefetch(p);
+#endif
+}
+
 // The candidate Gaussians of `indices` (canonical values) and their textures.
 void Subset(const Asset& asset, const std::vector<uint32_t>& indices, Gaussians* g, std::optional<TexturePool>* t) {
   const Gaussians& a = asset.gaussians;
@@ -101,8 +111,11 @@ StatusOr<std::vector<Image>> IncrementalProbes::Render(const Asset& asset, const
   out->settings.sh_degree = asset.gaussians.sh_degree;
   out->settings.textured = out->settings.request.use_textures && asset.textures.has_value();
   if (out->settings.request.apply_deformation && asset.deformation) out->settings.field = asset.deformation;
-  // RenderImportance needs every pixel composited (its weights sum over all of them).
-  const bool full = weigh_ || settings_ == nullptr || !settings_->Same(out->settings);
+  // RenderImportance needs every pixel composited (its weights sum over all of them). A
+  // candidate that changes every Gaussian (requantised positions, another field) has
+  // every pixel of the base to mark: a full render gives the same images for less.
+  const bool all_changed = full_when_all_changed_ && n > 0 && map.changed.size() == n;
+  const bool full = weigh_ || settings_ == nullptr || !settings_->Same(out->settings) || all_changed;
   if (full) {
     out->changed.resize(n);
     for (size_t j = 0; j < n; ++j) out->changed[j] = static_cast<uint32_t>(j);
@@ -315,6 +328,7 @@ uint64_t IncrementalProbes::RenderProbe(const Job& job, const detail::CameraMode
     pp->list_ranges[size_t(i) + 1] = pp->list_ranges[size_t(i)] + entries;
   }
   pp->lists.assign(pp->list_ranges.back(), 0);
+  pp->list_depths.assign(pp->list_ranges.back(), 0.0f);
   const size_t pixels = size_t(cam.width) * size_t(cam.height);
   pp->color = job.full ? std::vector<float>(pixels * 3, 0.0f) : base.color;
   pp->stops.assign(pixels, kNeverStopped);
@@ -360,17 +374,18 @@ bool IncrementalProbes::RenderTile(const Job& job, const detail::CameraModel<flo
   // The merged list: the base's surviving splats and the fresh ones, both already in
   // (depth, index) order.
   uint32_t* dst = pp->lists.data() + pp->list_ranges[i];
+  float* dst_depth = pp->list_depths.data() + pp->list_ranges[i];
   while (true) {
     while (a < a_end && job.stale[base.tile_list[a]]) ++a;
     if (a == a_end && f == f_end) break;
     const uint32_t from_base = a < a_end ? job.cand_of[base.tile_list[a]] : kNoBase;
     const uint32_t from_fresh = f < f_end ? job.changed[size_t(o.state.tile_gaussians[f])] : kNoBase;
+    const float da = from_base != kNoBase ? base.tile_depth[a] : 0.0f;
+    const float df = from_fresh != kNoBase ? pp->fresh[size_t(o.state.tile_gaussians[f])].depth : 0.0f;
     bool take_base = from_fresh == kNoBase;
-    if (from_base != kNoBase && from_fresh != kNoBase) {
-      const float da = base.splats[base.tile_list[a]].depth, df = pp->fresh[job.fresh_of[from_fresh]].depth;
-      take_base = da < df || (da == df && from_base < from_fresh);
-    }
+    if (from_base != kNoBase && from_fresh != kNoBase) take_base = da < df || (da == df && from_base < from_fresh);
     *dst++ = take_base ? from_base : from_fresh;
+    *dst_depth++ = take_base ? da : df;
     (take_base ? a : f)++;
   }
   if (!dirty) return false;  // no pixel of the tile changes
@@ -387,12 +402,34 @@ bool IncrementalProbes::RenderTile(const Job& job, const detail::CameraModel<flo
   thread_local std::vector<float> depths;
   thread_local std::vector<SplatReach> reach;
   thread_local std::vector<uint32_t> indices;
+  thread_local std::vector<detail::ConstantTexel<float>> constants;
   splats.clear();
   depths.clear();
   reach.clear();
   indices.clear();
+  constants.clear();
   const Texels* base_texels = job.textures != nullptr ? &texels_ : nullptr;
-  for (uint64_t e = pp->list_ranges[i]; e < pp->list_ranges[i + 1]; ++e) {
+  const uint64_t e_begin = pp->list_ranges[i], e_end = pp->list_ranges[i + 1];
+  // The list is in depth order, the base's splats in index order: fetch a few entries
+  // ahead, so that the memory reads overlap instead of waiting one after another.
+  constexpr uint64_t kAhead = 24;
+  const auto prefetch = [&](uint64_t e) {
+    const uint32_t j = pp->lists[e];
+    if (job.fresh_of[j] != kNoBase) return;
+    const uint32_t b = job.map.base_of[j];
+    const char* at = reinterpret_cast<const char*>(&base.splats[b]);
+    Prefetch(at);
+    Prefetch(at + sizeof(Splat) - 1);
+    if (base_texels != nullptr) {
+      Prefetch(&base_texels->offset[b]);
+      Prefetch(&base_texels->height[b]);
+      Prefetch(&base_texels->width[b]);
+      Prefetch(&base_texels->constant[b]);
+    }
+  };
+  for (uint64_t e = e_begin; e < std::min(e_end, e_begin + kAhead); ++e) prefetch(e);
+  for (uint64_t e = e_begin; e < e_end; ++e) {
+    if (e + kAhead < e_end) prefetch(e + kAhead);
     const uint32_t j = pp->lists[e];
     const uint32_t k = job.fresh_of[j];
     const uint32_t b = k != kNoBase ? kNoBase : job.map.base_of[j];
@@ -400,9 +437,15 @@ bool IncrementalProbes::RenderTile(const Job& job, const detail::CameraModel<flo
     const PixelBox& box = sp.reach.box;
     if (!(box.x0 < marked.x1 && marked.x0 < box.x1 && box.y0 < marked.y1 && marked.y0 < box.y1)) continue;
     splats.push_back(k != kNoBase ? Params(sp, job.fresh_texels, k) : Params(sp, base_texels, b));
+    // A copy of the 1×1 texture's activations next to the others: the compositing reads
+    // them at every pixel the splat reaches (the same values).
+    constants.push_back(splats.back().constant != nullptr ? *splats.back().constant : detail::ConstantTexel<float>{});
     depths.push_back(sp.depth);
     reach.push_back(sp.reach);
     indices.push_back(j);
+  }
+  for (size_t q = 0; q < splats.size(); ++q) {
+    if (splats[q].constant != nullptr) splats[q].constant = &constants[q];
   }
   const TileList list{splats.data(), reach.data(), depths.data(), indices.data(), static_cast<int>(splats.size())};
   thread_local std::vector<float> weights;

@@ -93,6 +93,10 @@ class IncrementalProbes {
   Status Commit(const Pending& pending);
 
   size_t base_size() const { return base_size_; }
+  // Whether a candidate that changes every one of its Gaussians is rendered as a full
+  // render (the default): the same images as the incremental path, which would mark every
+  // pixel of every splat of the base first. Tests switch it off to compare the two.
+  void set_full_when_all_changed(bool on) { full_when_all_changed_ = on; }
   // Gaussians projected (per probe) and tiles composited / kept since construction.
   uint64_t projected() const { return projected_; }
   uint64_t tiles_drawn() const { return tiles_drawn_; }
@@ -115,6 +119,8 @@ class IncrementalProbes {
     std::vector<Splat> splats;       // [base Gaussians]
     std::vector<uint64_t> tile_ranges;  // [tiles + 1]
     std::vector<uint32_t> tile_list;    // base indices in compositing order
+    std::vector<float> tile_depth;      // [tile_list entries] each entry's splat depth (the
+                                        // merge reads them in list order, not by index)
     std::vector<float> color;           // [pixels][3]
     std::vector<StopKey> stops;         // [pixels] (base indices)
   };
@@ -151,6 +157,7 @@ class IncrementalProbes {
   Texels texels_;
   uint64_t projected_ = 0, tiles_drawn_ = 0, tiles_kept_ = 0;
   bool weigh_ = false;  // RenderImportance's render: sum the blending weights
+  bool full_when_all_changed_ = true;
 };
 
 }  // namespace atex::fit::internal

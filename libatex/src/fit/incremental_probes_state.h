@@ -32,6 +32,7 @@ struct IncrementalProbes::PendingProbe {
   std::vector<int> tiles;                // composited again, ascending
   std::vector<uint64_t> list_ranges;     // [tiles + 1] into lists
   std::vector<uint32_t> lists;           // candidate indices in compositing order
+  std::vector<float> list_depths;        // [lists entries] their splats' depths
   std::vector<float> color;              // [pixels][3] the candidate's image
   std::vector<StopKey> stops;            // [pixels] (candidate indices)
   std::vector<float> importance;         // [candidate Gaussians] with RenderImportance

@@ -14,6 +14,7 @@
 #include "fit/cpu_probes.h"
 #include "fit/incremental_probes.h"
 #include "fit/levers.h"
+#include "fit/incremental_test_util.h"
 #include "fit/measure.h"
 #include "fit/probe_test_util.h"
 #include "fit/texture_shrink.h"
@@ -31,38 +32,12 @@ using internal::kNoBase;
 // (cpu_probes.h); everything else is the same arithmetic in the same order.
 constexpr float kTolerance = 2e-5f;
 
-Asset DynamicAsset(uint64_t seed, size_t n = 700) {
-  container::SyntheticAssetOptions o;
-  o.seed = seed;
-  o.gaussians = n;
-  o.sh_degree = 1;
-  o.textures = container::SyntheticTextures::kMixed;
-  o.sh_head = true;
-  return container::MakeSyntheticAsset(o);
-}
-
-std::vector<Camera> Cameras(const Asset& asset) {
-  std::vector<Camera> cameras;
-  for (const Probe& p : OrbitProbes(asset, 4, 64, 48)) cameras.push_back(p.camera);
-  return cameras;
-}
-
+using testing::AllNew;
+using testing::Cameras;
+using testing::DynamicAsset;
+using testing::Iota;
 using testing::MaxDifference;
 using testing::MeanValue;
-
-CandidateMap AllNew(size_t n) {
-  CandidateMap m;
-  m.base_of.assign(n, kNoBase);
-  m.changed.resize(n);
-  std::iota(m.changed.begin(), m.changed.end(), 0u);
-  return m;
-}
-
-std::vector<uint32_t> Iota(size_t n) {
-  std::vector<uint32_t> v(n);
-  std::iota(v.begin(), v.end(), 0u);
-  return v;
-}
 
 // Renders `next` (kept: its input indices) against the base `current` (current_kept)
 // incrementally, commits it, and checks it against a full render of `next`.

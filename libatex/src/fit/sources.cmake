@@ -22,7 +22,8 @@ function(atex_fit_tests)
   set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
   atex_add_test(NAME fit_test LABELS fit SOURCES ${dir}/fit_test.cc ${dir}/fit_time_windows_test.cc LIBS atex)
   atex_add_test(NAME cpu_probes_test LABELS fit SOURCES ${dir}/cpu_probes_test.cc LIBS atex)
-  atex_add_test(NAME incremental_probes_test LABELS fit SOURCES ${dir}/incremental_probes_test.cc LIBS atex)
+  atex_add_test(NAME incremental_probes_test LABELS fit SOURCES ${dir}/incremental_probes_test.cc
+                ${dir}/incremental_full_test.cc LIBS atex)
   # The committed lego sample against the real tiny lego images (a minute or two on 2 cores).
   atex_add_test(NAME fit_lego_test LABELS fit SOURCES ${dir}/fit_lego_test.cc LIBS atex)
 endfunction()

@@ -5,6 +5,10 @@
 #include <cmath>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "render/render_internal.h"
 
 namespace atex::fit::internal {
@@ -18,6 +22,41 @@ PixelBox TileBox(const detail::CameraModel<float>& cam, int t) {
 
 PixelBox Clip(const PixelBox& a, const PixelBox& b) {
   return {std::max(a.x0, b.x0), std::min(a.x1, b.x1), std::max(a.y0, b.y0), std::min(a.y1, b.y1)};
+}
+
+// What the reference loop's skip test reads of four splats (lanes in list order).
+struct SkipQuad {
+  float mean_x[4], mean_y[4], conic_a[4], conic_b[4], conic_c[4], skip_below[4];
+  int k[4];  // the splat's position in the tile's list; -1: padding
+};
+
+SkipQuad EmptyQuad() {
+  SkipQuad q{};
+  for (int l = 0; l < 4; ++l) q.k[l] = -1;
+  return q;
+}
+
+// Bit l set: lane l passes the skip test at pixel centre (px, py), i.e. !(power <
+// skip_below) with power = detail::GaussianPower's −½(A Δx² + C Δy²) − B Δx Δy, computed
+// with the same float operations in the same order (no contraction: SSE has no FMA).
+unsigned PassingLanes(const SkipQuad& q, float px, float py) {
+#if defined(__SSE2__)
+  const __m128 dx = _mm_sub_ps(_mm_set1_ps(px), _mm_loadu_ps(q.mean_x));
+  const __m128 dy = _mm_sub_ps(_mm_set1_ps(py), _mm_loadu_ps(q.mean_y));
+  const __m128 ax = _mm_mul_ps(_mm_mul_ps(_mm_loadu_ps(q.conic_a), dx), dx);
+  const __m128 cy = _mm_mul_ps(_mm_mul_ps(_mm_loadu_ps(q.conic_c), dy), dy);
+  const __m128 half = _mm_mul_ps(_mm_set1_ps(-0.5f), _mm_add_ps(ax, cy));
+  const __m128 power = _mm_sub_ps(half, _mm_mul_ps(_mm_mul_ps(_mm_loadu_ps(q.conic_b), dx), dy));
+  unsigned bits = unsigned(_mm_movemask_ps(_mm_cmpnlt_ps(power, _mm_loadu_ps(q.skip_below))));
+#else
+  unsigned bits = 0;
+  for (int l = 0; l < 4; ++l) {
+    const detail::Vec3<float> conic{{q.conic_a[l], q.conic_b[l], q.conic_c[l]}};
+    bits |= unsigned(!(detail::GaussianPower(conic, px - q.mean_x[l], py - q.mean_y[l]) < q.skip_below[l])) << l;
+  }
+#endif
+  for (int l = 0; l < 4; ++l) bits &= q.k[l] >= 0 ? ~0u : ~(1u << l);
+  return bits;
 }
 
 }  // namespace
@@ -71,12 +110,15 @@ void CompositePixels(const detail::CameraModel<float>& cam, int t, const TileLis
   const bool textured = count > 0 && splats[0].frame != nullptr;  // all or none of a render's splats are
   // Blocks of kBlock × kBlock pixels walk only the splats whose box meets the block: the
   // others fail the skip test at each of its pixels, where the reference loop passes them by.
+  // Each block holds what the skip test reads of its splats, packed four by four in list
+  // order (SkipQuad), so that one pixel tests four splats at once, with the reference's
+  // float operations in the reference's order on each: the same outcomes.
   constexpr int kBlock = 4, kBlocks = detail::kTileSize / kBlock;
-  thread_local std::vector<int> near[kBlocks * kBlocks];  // per block of the tile; empty when unmarked
+  thread_local std::vector<SkipQuad> near[kBlocks * kBlocks];  // per block of the tile; empty when unmarked
   for (int by = 0; by < kBlocks; ++by) {
     for (int bx = 0; bx < kBlocks; ++bx) {
-      std::vector<int>& list_of_block = near[by * kBlocks + bx];
-      list_of_block.clear();
+      std::vector<SkipQuad>& quads = near[by * kBlocks + bx];
+      quads.clear();
       const PixelBox block{tile.x0 + bx * kBlock, std::min(tile.x0 + (bx + 1) * kBlock, tile.x1),
                            tile.y0 + by * kBlock, std::min(tile.y0 + (by + 1) * kBlock, tile.y1)};
       bool marked = false;
@@ -86,9 +128,17 @@ void CompositePixels(const detail::CameraModel<float>& cam, int t, const TileLis
         }
       }
       if (!marked) continue;
+      int lane = 4;
       for (int k = 0; k < count; ++k) {
         const PixelBox& b = list.reach[k].box;
-        if (b.x0 < block.x1 && block.x0 < b.x1 && b.y0 < block.y1 && block.y0 < b.y1) list_of_block.push_back(k);
+        if (!(b.x0 < block.x1 && block.x0 < b.x1 && b.y0 < block.y1 && block.y0 < b.y1)) continue;
+        if (lane == 4) quads.push_back(EmptyQuad()), lane = 0;
+        const auto& sp = splats[k];
+        SkipQuad& q = quads.back();
+        q.mean_x[lane] = sp.mean2d[0], q.mean_y[lane] = sp.mean2d[1];
+        q.conic_a[lane] = sp.conic[0], q.conic_b[lane] = sp.conic[1], q.conic_c[lane] = sp.conic[2];
+        q.skip_below[lane] = list.reach[k].skip_below;
+        q.k[lane++] = k;
       }
     }
   }
@@ -103,21 +153,25 @@ void CompositePixels(const detail::CameraModel<float>& cam, int t, const TileLis
       float transmittance = 1.0f;
       detail::Vec3<float> c{{0.0f, 0.0f, 0.0f}};
       StopKey stop = kNeverStopped;
-      for (int k : near[((y - tile.y0) / kBlock) * kBlocks + (x - tile.x0) / kBlock]) {
-        const auto& sp = splats[k];
-        const float power = detail::GaussianPower(sp.conic, px - sp.mean2d[0], py - sp.mean2d[1]);
-        if (power < list.reach[k].skip_below) continue;
-        const detail::SplatSample<float> s = detail::EvaluateSplat(sp, px, py, ray);
-        if (!s.contributes) continue;
-        const float next = transmittance * (1.0f - s.alpha);
-        if (next < float(detail::kMinTransmittance)) {
-          stop = StopKey{list.depths[k], list.indices[k]};
-          break;
+      bool stopped = false;
+      for (const SkipQuad& q : near[((y - tile.y0) / kBlock) * kBlocks + (x - tile.x0) / kBlock]) {
+        // Lanes in list order; a padding lane (k < 0) never passes.
+        for (unsigned pass = PassingLanes(q, px, py); pass != 0 && !stopped; pass &= pass - 1) {
+          const int k = q.k[__builtin_ctz(pass)];
+          const detail::SplatSample<float> s = detail::EvaluateSplat(splats[k], px, py, ray);
+          if (!s.contributes) continue;
+          const float next = transmittance * (1.0f - s.alpha);
+          if (next < float(detail::kMinTransmittance)) {
+            stop = StopKey{list.depths[k], list.indices[k]};
+            stopped = true;
+            break;
+          }
+          const float w = s.alpha * transmittance;
+          for (int ch = 0; ch < 3; ++ch) c[ch] += s.color[ch] * w;
+          if (weights != nullptr) weights[k] += w;
+          transmittance = next;
         }
-        const float w = s.alpha * transmittance;
-        for (int ch = 0; ch < 3; ++ch) c[ch] += s.color[ch] * w;
-        if (weights != nullptr) weights[k] += w;
-        transmittance = next;
+        if (stopped) break;
       }
       const size_t p = size_t(y) * size_t(cam.width) + size_t(x);
       for (int ch = 0; ch < 3; ++ch) color[3 * p + ch] = c[ch] + transmittance * background[ch];

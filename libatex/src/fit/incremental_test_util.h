@@ -1,0 +1,47 @@
+// For the incremental probe renderer's tests (incremental_probes_test.cc,
+// incremental_full_test.cc): a small dynamic asset, its probe cameras and candidate maps.
+#pragma once
+
+#include <cstdint>
+#include <numeric>
+#include <vector>
+
+#include "atex/fit.h"
+#include "container/synthetic_asset.h"
+#include "fit/incremental_probes.h"
+
+namespace atex::fit::testing {
+
+// Textured (1×1 and larger), SH degree 1, with a deformation field that moves SH too.
+inline Asset DynamicAsset(uint64_t seed, size_t n = 700) {
+  container::SyntheticAssetOptions o;
+  o.seed = seed;
+  o.gaussians = n;
+  o.sh_degree = 1;
+  o.textures = container::SyntheticTextures::kMixed;
+  o.sh_head = true;
+  return container::MakeSyntheticAsset(o);
+}
+
+inline std::vector<Camera> Cameras(const Asset& asset) {
+  std::vector<Camera> cameras;
+  for (const Probe& p : OrbitProbes(asset, 4, 64, 48)) cameras.push_back(p.camera);
+  return cameras;
+}
+
+// Every Gaussian new to the base.
+inline internal::CandidateMap AllNew(size_t n) {
+  internal::CandidateMap m;
+  m.base_of.assign(n, internal::kNoBase);
+  m.changed.resize(n);
+  std::iota(m.changed.begin(), m.changed.end(), 0u);
+  return m;
+}
+
+inline std::vector<uint32_t> Iota(size_t n) {
+  std::vector<uint32_t> v(n);
+  std::iota(v.begin(), v.end(), 0u);
+  return v;
+}
+
+}  // namespace atex::fit::testing
