@@ -15,6 +15,7 @@
 #include "atex/converters/gltf.h"
 #include "atex/converters/splatv.h"
 #include "atex/file_io.h"
+#include "atex/version.h"
 #include "cli.h"
 #include "cli_parse.h"
 
@@ -92,7 +93,8 @@ int ExportFrames(const ExportArgs& a, const atex::Asset& asset, atex::GltfExport
     if (i + 1 < times.size()) progress.Update(static_cast<long long>(i + 1));
   }
   progress.Finish();
-  const nlohmann::json manifest = {{"generator", "atex 0.1.0"}, {"format", "glb sequence"}, {"frames", frames}};
+  const nlohmann::json manifest = {
+      {"generator", std::string("atex ") + atex::kVersion}, {"format", "glb sequence"}, {"frames", frames}};
   const std::string text = manifest.dump(2);
   atex::Status s = atex::WriteFileAtomic((out / "frames.json").string(), text.data(), text.size());
   if (!s.ok()) return atex::cli::Fail("export", s);

@@ -11,6 +11,7 @@
 #include "atex/converters/gltf.h"
 #include "atex/deform.h"
 #include "atex/file_io.h"
+#include "atex/version.h"
 #include "gltf/gltf_container.h"
 #include "gltf/gltf_json_util.h"
 #include "gltf/gltf_names.h"
@@ -413,7 +414,7 @@ Status SplatExporter::Build(const Asset& asset) {
   writer_.UseExtension(gltf::kKhrGaussianSplatting, false);
 
   json& doc = writer_.doc();
-  doc["asset"] = {{"version", "2.0"}, {"generator", "atex 0.1.0"}};
+  doc["asset"] = {{"version", "2.0"}, {"generator", std::string("atex ") + kVersion}};
   doc["meshes"] = json::array({{{"name", "gaussians"}, {"primitives", json::array({primitive})}}});
   json node = {{"name", "atex"}, {"mesh", 0}};
   const std::array<double, 4> rotation = GltfRootRotation(up);
