@@ -1,0 +1,156 @@
+// The texture-shrinking lever (fit/texture_shrink.h) and the SH-degree and grid levers
+// (fit/levers.h): exact where the coarser form can represent the field, least squares otherwise,
+// and valid assets throughout.
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "atex/container.h"
+#include "atex/fit.h"
+#include "container/synthetic_asset.h"
+#include "fit/fit_test_util.h"
+#include "fit/levers.h"
+#include "fit/texture_shrink.h"
+
+namespace atex::fit {
+namespace {
+
+using testing::SmallAsset;
+
+TEST(TextureShrink, RepresentableFieldsShrinkExactly) {
+  // A raw field linear along u is exactly representable on 2 samples: shrinking 4 → 2 loses nothing.
+  float src[1 * 4 * 4];
+  for (int x = 0; x < 4; ++x)
+    for (int c = 0; c < 4; ++c) src[x * 4 + c] = 0.3f * c - 0.5f + 0.9f * x / 3.0f;
+  EXPECT_LT(ShrinkResidual(src, 1, 4, 1, 2), 1e-14);
+  EXPECT_GT(ShrinkResidual(src, 1, 4, 1, 1), 1e-6) << "a constant cannot hold a ramp";
+  float constant[2 * 2 * 4];
+  for (float& v : constant) v = 0.3f;
+  EXPECT_LT(ShrinkResidual(constant, 2, 2, 1, 1), 1e-14);
+  float out[4];
+  ShrinkTexture(constant, 2, 2, out, 1, 1);
+  for (float v : out) EXPECT_NEAR(v, 0.3f, 1e-6);
+}
+
+TEST(TextureShrink, LeastSquaresBeatsCornerSampling) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-2, 2);
+  for (int trial = 0; trial < 20; ++trial) {
+    float src[16 * 4];
+    for (float& v : src) v = u(rng);
+    const double ls = ShrinkResidual(src, 4, 4, 2, 2);
+    // Corner sampling: what plain resampling (detail::UpsampleTexture to a smaller grid) keeps.
+    float corners[2 * 2 * 4], back[16 * 4];
+    detail::UpsampleTexture(src, 4, 4, corners, 2, 2, 4);
+    detail::UpsampleTexture(corners, 2, 2, back, 4, 4, 4);
+    double naive = 0;
+    for (int k = 0; k < 64; ++k) {
+      const double d = 0.1 * (std::tanh(back[k]) - std::tanh(src[k]));
+      naive += d * d;
+    }
+    EXPECT_LE(ls, naive / 64 + 1e-12);
+  }
+}
+
+TEST(TextureShrink, GreedyOrderAndLimits) {
+  Asset a = SmallAsset(container::SyntheticTextures::kMixed);
+  const uint64_t before = a.textures->texel_count();
+  const uint64_t shrinkable = ShrinkableTexels(*a.textures);
+  ASSERT_GT(shrinkable, 0u);
+  ASSERT_TRUE(ShrinkTextures(&a, 10).ok());
+  EXPECT_LT(a.textures->texel_count(), before);
+  EXPECT_TRUE(ValidateAsset(a).ok());
+  auto done = ShrinkTextures(&a, ~uint64_t{0});
+  ASSERT_TRUE(done.ok());
+  EXPECT_EQ(a.textures->texel_count(), a.textures->size()) << "everything ends 1x1";
+  EXPECT_TRUE(ValidateAsset(a).ok());
+}
+
+TEST(TextureShrink, UniformAssetsBecomeAdaptive) {
+  Asset a = SmallAsset(container::SyntheticTextures::kUniform);
+  a.metadata.texture_mode = "uniform";
+  ASSERT_TRUE(ValidateAsset(a).ok());
+  ASSERT_TRUE(ShrinkTextures(&a, 5).ok());
+  EXPECT_EQ(a.metadata.texture_mode, "adaptive");
+  EXPECT_TRUE(ValidateAsset(a).ok()) << ValidateAsset(a).ToString();
+}
+
+TEST(TextureShrink, HalvingAllTexturesKeepsAUniformPoolUniform) {
+  Asset a = SmallAsset(container::SyntheticTextures::kUniform);
+  a.metadata.texture_mode = "uniform";
+  ASSERT_TRUE(ValidateAsset(a).ok());
+  const int side = a.textures->heights[0];
+  ASSERT_EQ(side, 4);
+  // 4x4 → 2x4 → 2x2 → 1x2 → 1x1: the longer axis (the height on a tie), every texture alike.
+  const std::vector<std::pair<int, int>> sizes = {{2, 4}, {2, 2}, {1, 2}, {1, 1}};
+  for (const auto& [h, w] : sizes) {
+    ASSERT_TRUE(HalveAllTextures(&a).ok());
+    for (size_t i = 0; i < a.textures->size(); ++i) {
+      ASSERT_EQ(a.textures->heights[i], h);
+      ASSERT_EQ(a.textures->widths[i], w);
+    }
+    EXPECT_EQ(a.metadata.texture_mode, "uniform");
+    EXPECT_TRUE(ValidateAsset(a).ok()) << ValidateAsset(a).ToString();
+  }
+  EXPECT_EQ(HalveAllTextures(&a).code(), StatusCode::kInvalidArgument) << "nothing left to halve";
+}
+
+TEST(TextureShrink, HalvingAllTexturesProjectsEachTextureAsShrinkTextureDoes) {
+  Asset a = SmallAsset(container::SyntheticTextures::kMixed, 9);
+  const TexturePool before = *a.textures;
+  ASSERT_TRUE(HalveAllTextures(&a).ok());
+  const TexturePool& after = *a.textures;
+  size_t halved = 0;
+  for (size_t i = 0; i < before.size(); ++i) {
+    const int h = before.heights[i], w = before.widths[i];
+    const int nh = after.heights[i], nw = after.widths[i];
+    const float* src = before.texels.data() + before.offsets[i] * kTexelChannels;
+    const float* dst = after.texels.data() + after.offsets[i] * kTexelChannels;
+    if (h == 1 && w == 1) {
+      ASSERT_EQ(nh * nw, 1);
+      for (int c = 0; c < kTexelChannels; ++c) ASSERT_EQ(dst[c], src[c]);
+      continue;
+    }
+    ++halved;
+    ASSERT_EQ(nh * nw * 2, h * w) << "texture " << i << " loses exactly one axis halving";
+    ASSERT_EQ(nh < h, h >= w) << "texture " << i << " halves its longer axis";
+    std::vector<float> expected(static_cast<size_t>(nh) * nw * kTexelChannels);
+    ShrinkTexture(src, h, w, expected.data(), nh, nw);
+    for (size_t k = 0; k < expected.size(); ++k) ASSERT_EQ(dst[k], expected[k]) << "texture " << i;
+  }
+  EXPECT_GT(halved, before.size() / 4);
+  EXPECT_TRUE(ValidateAsset(a).ok());
+}
+
+TEST(Levers, ShDegreeAndGridKeepAssetsValid) {
+  Asset a = SmallAsset(container::SyntheticTextures::kMixed);
+  ASSERT_TRUE(a.deformation->config.heads[kHeadSH]);
+  while (a.gaussians.sh_degree > 0) {
+    ASSERT_TRUE(LowerShDegree(&a).ok());
+    ASSERT_TRUE(ValidateAsset(a).ok()) << ValidateAsset(a).ToString();
+  }
+  EXPECT_FALSE(LowerShDegree(&a).ok());
+  int halvings = 0;
+  while (CanCoarsenGrid(a, 4)) {
+    ASSERT_TRUE(CoarsenGrid(&a, 4).ok());
+    ASSERT_TRUE(ValidateAsset(a).ok());
+    ++halvings;
+  }
+  EXPECT_GT(halvings, 0);
+  EXPECT_FALSE(CoarsenGrid(&a, 4).ok());
+}
+
+TEST(Levers, CoarsenGridKeepsAConstantFieldExactly) {
+  Asset a = SmallAsset(container::SyntheticTextures::kNone);
+  for (auto& scale : a.deformation->planes)
+    for (auto& plane : scale) std::fill(plane.begin(), plane.end(), 0.7f);
+  ASSERT_TRUE(CoarsenGrid(&a, 2).ok());
+  for (auto& scale : a.deformation->planes)
+    for (auto& plane : scale)
+      for (float v : plane) ASSERT_NEAR(v, 0.7f, 1e-6);
+}
+
+}  // namespace
+}  // namespace atex::fit
