@@ -24,6 +24,7 @@ using testing::AllNew;
 using testing::Cameras;
 using testing::DynamicAsset;
 using testing::Iota;
+using testing::PruneEvery;
 using testing::MaxDifference;
 
 bool BitwiseEqual(const std::vector<Image>& a, const std::vector<Image>& b) {
@@ -73,12 +74,7 @@ TEST(IncrementalProbes, AllChangedFullRenderEqualsTheIncrementalPathBitwise) {
   // The first render (every Gaussian new) is a full render on both.
   step(asset, current_kept, "first");
   const uint64_t all_tiles = full.tiles_drawn();
-  std::vector<uint8_t> keep(asset.gaussians.size(), 1);
-  std::vector<uint32_t> kept;
-  for (size_t i = 0; i < keep.size(); ++i) {
-    keep[i] = i % 3 != 0;
-    if (keep[i]) kept.push_back(static_cast<uint32_t>(i));
-  }
+  const auto [keep, kept] = PruneEvery(asset.gaussians.size(), 3, 0);
   step(SubsetGaussians(asset, keep), kept, "pruned");
   WriteOptions q8;
   q8.positions = ScalarEncoding::kQuant8;

@@ -36,6 +36,7 @@ using testing::AllNew;
 using testing::Cameras;
 using testing::DynamicAsset;
 using testing::Iota;
+using testing::PruneEvery;
 using testing::MaxDifference;
 using testing::MeanValue;
 
@@ -99,12 +100,7 @@ TEST(IncrementalProbes, EqualFullRendersAcrossMoves) {
   const uint64_t full_tiles = chain.probes().tiles_drawn();
 
   // Prune every third Gaussian.
-  std::vector<uint8_t> keep(asset.gaussians.size(), 1);
-  std::vector<uint32_t> kept;
-  for (size_t i = 0; i < keep.size(); ++i) {
-    keep[i] = i % 3 != 0;
-    if (keep[i]) kept.push_back(static_cast<uint32_t>(i));
-  }
+  const auto [keep, kept] = PruneEvery(asset.gaussians.size(), 3, 0);
   chain.Step(SubsetGaussians(asset, keep), kept, "pruned");
 
   // A texture move changes a few Gaussians: fewer tiles than a full render.
@@ -134,12 +130,7 @@ TEST(IncrementalProbes, EqualFullRendersAcrossMoves) {
   chain.Step(lower, kept, "SH degree lowered");
 
   // A second prune after all that, then an opacity change of one Gaussian.
-  std::vector<uint8_t> keep2(lower.gaussians.size(), 1);
-  std::vector<uint32_t> kept2;
-  for (size_t j = 0; j < keep2.size(); ++j) {
-    keep2[j] = j % 5 != 2;
-    if (keep2[j]) kept2.push_back(kept[j]);
-  }
+  const auto [keep2, kept2] = PruneEvery(lower.gaussians.size(), 5, 2, kept);
   Asset pruned2 = SubsetGaussians(lower, keep2);
   chain.Step(pruned2, kept2, "pruned again");
   Asset one = pruned2;
@@ -162,12 +153,7 @@ TEST(IncrementalProbes, EqualFullRendersWithTimeWindows) {
   }
   ASSERT_TRUE(ValidateAsset(asset).ok());
   Chain chain(asset, Cameras(asset));
-  std::vector<uint8_t> keep(g.size(), 1);
-  std::vector<uint32_t> kept;
-  for (size_t i = 0; i < keep.size(); ++i) {
-    keep[i] = i % 4 != 1;
-    if (keep[i]) kept.push_back(static_cast<uint32_t>(i));
-  }
+  const auto [keep, kept] = PruneEvery(g.size(), 4, 1);
   chain.Step(SubsetGaussians(asset, keep), kept, "pruned, with windows");
   Asset narrower = chain.current();
   narrower.gaussians.time_windows[1] = 40.0f;  // one window narrowed: that Gaussian changes
@@ -179,12 +165,7 @@ TEST(IncrementalProbes, RangeStablePruneRendersTheBaseLessTheRemoved) {
   Chain chain(asset, Cameras(asset));
   // A candidate whose values all moved (as after a range change), rendered with no
   // Gaussian marked changed: the base's values less the removed ones.
-  std::vector<uint8_t> keep(asset.gaussians.size(), 1);
-  std::vector<uint32_t> kept;
-  for (size_t i = 0; i < keep.size(); ++i) {
-    keep[i] = i % 4 != 1;
-    if (keep[i]) kept.push_back(static_cast<uint32_t>(i));
-  }
+  const auto [keep, kept] = PruneEvery(asset.gaussians.size(), 4, 1);
   const Asset survivors = SubsetGaussians(asset, keep);
   Asset moved = survivors;
   for (float& x : moved.gaussians.log_scales) x += 0.05f;

@@ -38,6 +38,22 @@ inline internal::CandidateMap AllNew(size_t n) {
   return m;
 }
 
+// A prune of n Gaussians that drops those with i % modulo == residue: the keep mask, and the kept
+// Gaussians' indices in the base (base_index[i], or i when base_index is empty).
+struct Prune {
+  std::vector<uint8_t> keep;
+  std::vector<uint32_t> kept;
+};
+inline Prune PruneEvery(size_t n, size_t modulo, size_t residue, const std::vector<uint32_t>& base_index = {}) {
+  Prune p;
+  p.keep.assign(n, 1);
+  for (size_t i = 0; i < n; ++i) {
+    p.keep[i] = i % modulo != residue;
+    if (p.keep[i]) p.kept.push_back(base_index.empty() ? static_cast<uint32_t>(i) : base_index[i]);
+  }
+  return p;
+}
+
 inline std::vector<uint32_t> Iota(size_t n) {
   std::vector<uint32_t> v(n);
   std::iota(v.begin(), v.end(), 0u);
