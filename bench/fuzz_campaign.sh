@@ -7,22 +7,29 @@
 # executions, coverage and findings per target is printed and written as Markdown and
 # JSON.
 #
-#   bench/fuzz_campaign.sh [--seconds S] [--jobs J] [--build DIR] [--targets a,b] [--out DIR] [--no-merge]
+#   bench/fuzz_campaign.sh [--seconds S] [--runs N] [--jobs J] [--build DIR] [--prebuilt]
+#                          [--targets a,b] [--out DIR] [--no-merge]
 #
-#   --seconds S   time per target (default 60; the issue's depth is >= 10 million executions
-#                 per target: about 30 minutes per target on 16 cores)
+#   --seconds S   time per target (default 60): the most a target runs
+#   --runs N      stop a target once its processes have executed N inputs in all (libFuzzer's
+#                 -runs, summed over the fork; the issue's depth is 10000000), or at S seconds
 #   --jobs J      parallel fuzzing processes per target (default: every core, nproc)
 #   --build DIR   the clang ASan+UBSan+libFuzzer build (default build-fuzz; configured as
 #                 tests/sanitize.sh does when missing)
 #   --targets     comma-separated subset (fuzz_atex,fuzz_ply,...; default all tests/fuzz/fuzz_*.cc)
 #   --out DIR     where fuzz_campaign.{md,json} and the logs go (default BUILD/fuzz-campaign)
+#   --prebuilt    use the targets already in DIR/fuzz as they are: no clang needed (for a
+#                 machine without clang, e.g. the lent GPU machines, with binaries built here;
+#                 bench/device/fuzz_kit.sh packs them with the libraries they load)
 #   --no-merge    leave tests/fuzz/corpus untouched
 #
-# Needs clang and libclang-rt (Debian: clang libclang-rt-14-dev). No GPU. The exit status is
+# Needs clang and libclang-rt (Debian: clang libclang-rt-14-dev) unless --prebuilt. No GPU. The exit status is
 # 1 when any target found a crash, leak, timeout or out-of-memory input.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 SECONDS_PER_TARGET=60
+RUNS=-1
+PREBUILT=0
 JOBS=$(nproc)
 BUILD=build-fuzz
 TARGETS=""
@@ -31,23 +38,28 @@ MERGE=1
 while [ $# -gt 0 ]; do
   case $1 in
     --seconds) SECONDS_PER_TARGET=$2; shift 2 ;;
+    --runs) RUNS=$2; shift 2 ;;
+    --prebuilt) PREBUILT=1; shift ;;
     --jobs) JOBS=$2; shift 2 ;;
     --build) BUILD=$2; shift 2 ;;
     --targets) TARGETS=$2; shift 2 ;;
     --out) OUT=$2; shift 2 ;;
     --no-merge) MERGE=0; shift ;;
-    -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,29p' "$0"; exit 0 ;;
     *) echo "fuzz_campaign.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
 done
 case $SECONDS_PER_TARGET in ''|*[!0-9]*) echo "fuzz_campaign.sh: --seconds must be a whole number" >&2; exit 2 ;; esac
+case $RUNS in -1) ;; ''|*[!0-9]*|0) echo "fuzz_campaign.sh: --runs must be a positive whole number" >&2; exit 2 ;; esac
 case $JOBS in ''|*[!0-9]*|0) echo "fuzz_campaign.sh: --jobs must be a positive whole number" >&2; exit 2 ;; esac
 OUT=${OUT:-$BUILD/fuzz-campaign}
 START=$(date +%s)
 say() { echo "== fuzz campaign [$(( $(date +%s) - START ))s] $*"; }
-for tool in clang clang++; do
-  command -v "$tool" >/dev/null || { echo "fuzz_campaign.sh: $tool not found (Debian: clang libclang-rt-14-dev)" >&2; exit 1; }
-done
+if [ "$PREBUILT" = 0 ]; then
+  for tool in clang clang++; do
+    command -v "$tool" >/dev/null || { echo "fuzz_campaign.sh: $tool not found (Debian: clang libclang-rt-14-dev)" >&2; exit 1; }
+  done
+fi
 
 ALL=()
 for source in "$ROOT"/tests/fuzz/fuzz_*.cc; do ALL+=("$(basename "$source" .cc)"); done
@@ -56,7 +68,11 @@ for name in "${RUN[@]}"; do
   [ -e "$ROOT/tests/fuzz/$name.cc" ] || { echo "fuzz_campaign.sh: no target $name (have: ${ALL[*]})" >&2; exit 2; }
 done
 
-if [ ! -f "$BUILD/CMakeCache.txt" ]; then
+if [ "$PREBUILT" = 1 ]; then
+  for name in "${RUN[@]}"; do
+    [ -x "$BUILD/fuzz/$name" ] || { echo "fuzz_campaign.sh: --prebuilt but $BUILD/fuzz/$name is missing" >&2; exit 1; }
+  done
+elif [ ! -f "$BUILD/CMakeCache.txt" ]; then
   say "configure $BUILD (clang, ASan+UBSan, libFuzzer; as tests/sanitize.sh)"
   mkdir -p "$BUILD"
   CC=clang CXX=clang++ cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
@@ -64,8 +80,10 @@ if [ ! -f "$BUILD/CMakeCache.txt" ]; then
     -DATEX_SANITIZE=ON -DATEX_FUZZ=ON -DATEX_CUDA=OFF -DATEX_BENCHMARKS=OFF -DATEX_TESTS=ON \
     >"$BUILD/configure.log" 2>&1 || { cat "$BUILD/configure.log"; exit 1; }
 fi
-say "build ${#RUN[@]} targets: ${RUN[*]}"
-cmake --build "$BUILD" -j "$JOBS" --target "${RUN[@]}" >"$BUILD/fuzz-build.log" 2>&1 || { tail -40 "$BUILD/fuzz-build.log"; exit 1; }
+if [ "$PREBUILT" = 0 ]; then
+  say "build ${#RUN[@]} targets: ${RUN[*]}"
+  cmake --build "$BUILD" -j "$JOBS" --target "${RUN[@]}" >"$BUILD/fuzz-build.log" 2>&1 || { tail -40 "$BUILD/fuzz-build.log"; exit 1; }
+fi
 
 mkdir -p "$OUT"
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}
@@ -89,7 +107,7 @@ for name in "${RUN[@]}"; do
   # -fork: JOBS child processes, crashes recorded and the campaign continues (-ignore_*).
   set +e
   "$BUILD/fuzz/$name" -fork="$JOBS" -ignore_crashes=1 -ignore_timeouts=1 -ignore_ooms=1 \
-    -max_total_time="$SECONDS_PER_TARGET" -rss_limit_mb=2048 -timeout=20 -print_final_stats=1 \
+    -max_total_time="$SECONDS_PER_TARGET" -runs="$RUNS" -rss_limit_mb=2048 -timeout=20 -print_final_stats=1 \
     -artifact_prefix="$work/artifacts/" "$work/new" "$seeds" >"$work/log" 2>&1
   status=$?
   set -e
@@ -134,7 +152,9 @@ done
   echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"
   for row in "${ROWS[@]}"; do echo "| ${row//|/ | } |"; done
   echo
-  echo "Machine: $(nproc) cores, $(uname -srm); $(date -u +%Y-%m-%d); command: bench/fuzz_campaign.sh --seconds $SECONDS_PER_TARGET --jobs $JOBS"
+  runs_arg=""
+  [ "$RUNS" != -1 ] && runs_arg=" --runs $RUNS"
+  echo "Machine: $(nproc) cores, $(uname -srm); $(date -u +%Y-%m-%d); command: bench/fuzz_campaign.sh --seconds $SECONDS_PER_TARGET$runs_arg --jobs $JOBS"
 } >"$OUT/fuzz_campaign.md"
 python3 - "$OUT/fuzz_campaign.json" "${ROWS[@]}" <<'PY'
 import json, sys

@@ -5,9 +5,9 @@
 # on the same GPU. Each fit is timed (wall seconds of the process) and its output evaluated on
 # the test views; outputs are checked against the budget and with `atex verify`.
 #
-#   bench/device/fit_panoptic.sh OUT_DIR [UNIFORM.atex ADAPTIVE.atex]
+#   bench/device/fit_panoptic.sh OUT_DIR [UNIFORM.atex ADAPTIVE.atex | --train-only]
 #
-# Without models it trains short ones with the current tree (shortened stage 1 of common.sh,
+# Without models it trains short ones into out/fitp (--train-only: only that, and no old build) with the current tree (shortened stage 1 of common.sh,
 # then 1,200 stage-2 steps uniform and adaptive, growth at 120 and 240). Results:
 # OUT_DIR/fit_panoptic.jsonl (one row per fit) and a table on stdout.
 source "$(dirname "$0")/common.sh"
@@ -17,7 +17,11 @@ models=out/fitp
 mkdir -p "$out" "$models"
 jobs=$(nproc)
 build_tree . "$BUILD" "$jobs" atex_cli > out/build_new.log 2>&1 || { tail -5 out/build_new.log; exit 1; }
-build_old "$jobs" > out/build_old.log 2>&1 || { tail -5 out/build_old.log; exit 1; }
+train_only=0
+[ "${2:-}" = --train-only ] && train_only=1
+if [ $train_only = 0 ]; then
+  build_old "$jobs" > out/build_old.log 2>&1 || { tail -5 out/build_old.log; exit 1; }
+fi
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | head -1 | tee "$out/gpu.txt"
 
 if [ $# -ge 3 ]; then
@@ -35,6 +39,7 @@ else
   done
   uniform=$models/uniform.atex
   adaptive=$models/adaptive.atex
+  [ $train_only = 1 ] && exit 0
 fi
 budget=$(( $(stat -c %s "$uniform") / 4 ))
 rows=$out/fit_panoptic.jsonl

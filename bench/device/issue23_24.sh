@@ -1,0 +1,113 @@
+#!/usr/bin/env bash
+# One GPU-machine session for issues 23 and 24, and a Panoptic model for issue 21's players.
+# A lent machine allows 10 minutes per command; the steps run in the background (setsid) and
+# outlive the call while the machine stays warm, so each next `wait` call must follow at once.
+#   bench/device/issue23_24.sh start OUT   build, then start the steps
+#   bench/device/issue23_24.sh wait OUT    follow them until they end or CALL_SECONDS (default 540) pass
+# Every call leaves OUT/progress.txt, OUT/results.tgz (logs, tables, rows), OUT/corpus.tgz (fuzz
+# inputs new since the start) and, once fitted, OUT/panoptic_stage1_15MiB.atex.
+# Steps (logs in out/s23/):
+#   1. the CUDA build (bg: CLI and tests) and .oldsrc's CLI (build-old); .fuzzkit unpacked
+#   2. GPU: the CUDA tests (ctest -L cuda), then fit_panoptic.sh's short models
+#      meanwhile: bench/fit_random_budgets.sh -n 1000 on the lego sample (8 fits at a time, on
+#      the GPU: the fit's backend is auto), and the fuzz campaign on FUZZ_FIRST (fast targets, 6
+#      processes)
+#   3. fit_panoptic.sh on those models, old and new CLI, alone on the machine (timed); the
+#      stage-1 model fitted to 15 MiB (issue 21: small enough to come back from the device)
+#   4. GPU: gpu_memory_stress.sh; CPU meanwhile: the fuzz campaign on the other targets (14
+#      processes)
+source "$(dirname "$0")/common.sh"
+phase=$1 out=$2
+s=out/s23
+mkdir -p "$out" "$s"
+start=$(date +%s)
+CALL_SECONDS=${CALL_SECONDS:-540}
+RUNS=${FUZZ_RUNS:-10000000}
+FUZZ_SECONDS=${FUZZ_SECONDS:-480}
+FUZZ_FIRST=${FUZZ_FIRST:-fuzz_image,fuzz_npz,fuzz_ply,fuzz_spz,fuzz_exr,fuzz_splat,fuzz_compressed_ply,fuzz_transforms_json}
+
+steps() {
+  set +e
+  local t0
+  t0=$(date +%s)
+  note() { echo "$(date +%T) [$(( $(date +%s) - t0 ))s] $*" >> "$s/steps.log"; }
+  note "build"
+  touch "$s/corpus.marker"
+  bench/device/fuzz_kit.sh unpack
+  (build_old 8 > "$s/build_old.log" 2>&1 || echo "build-old failed" >> "$s/steps.log") &
+  cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES=90 \
+    -DATEX_DATA_DIR="$PWD/.devdata" > "$s/build.log" 2>&1
+  cmake --build "$BUILD" -j 16 >> "$s/build.log" 2>&1 || { note "build failed"; note "done"; return 1; }
+  wait
+  note "step 2: GPU tests and models | random budgets | fuzz $FUZZ_FIRST"
+  (
+    ctest --test-dir "$BUILD" -L cuda --output-on-failure -j 1 > "$s/gpu_ctest.log" 2>&1
+    echo "rc=$?" >> "$s/gpu_ctest.log"
+    bench/device/fit_panoptic.sh "$s/fit" --train-only > "$s/train_models.log" 2>&1
+    echo "rc=$?" >> "$s/train_models.log"
+  ) &
+  (
+    OMP_NUM_THREADS=2 bench/fit_random_budgets.sh -n 1000 -s 3 -a "$atex" -i samples/lego_adaptive_2MiB.atex -j 8 \
+      -o "$s/fit_random_budgets_lego.csv" > "$s/random_budgets.log" 2>&1
+    note "random budgets rc=$?"
+  ) &
+  LD_LIBRARY_PATH=$PWD/.fuzzkit/lib bench/fuzz_campaign.sh --prebuilt --build .fuzzkit/build --jobs 6 \
+    --seconds "$FUZZ_SECONDS" --runs "$RUNS" --targets "$FUZZ_FIRST" --out "$s/fuzz1" > "$s/fuzz1.log" 2>&1
+  note "fuzz first done (rc=$?)"
+  wait
+  note "step 3: timed fits"
+  bench/device/fit_panoptic.sh "$s/fit" out/fitp/uniform.atex out/fitp/adaptive.atex > "$s/fit_panoptic.log" 2>&1
+  note "fit_panoptic rc=$?"
+  "$atex" fit out/fitp/stage1.atex "$s/panoptic_stage1_15MiB.atex" --budget 15MiB --data "$bb" --force --json \
+    > "$s/fit15.json" 2> "$s/fit15.log"
+  "$atex" eval "$s/panoptic_stage1_15MiB.atex" --data "$bb" --json > "$s/fit15.eval.json" 2>&1
+  "$atex" eval out/fitp/stage1.atex --data "$bb" --json > "$s/stage1.eval.json" 2>&1
+  note "step 4: stress | fuzz rest, random budgets"
+  (bench/device/gpu_memory_stress.sh > "$s/gpu_memory_stress.log" 2>&1; echo "rc=$?" >> "$s/gpu_memory_stress.log") &
+  local rest
+  rest=$(ls tests/fuzz/fuzz_*.cc | xargs -n1 basename | sed 's/\.cc$//' | grep -vxF -f <(tr , '\n' <<<"$FUZZ_FIRST") | paste -sd,)
+  LD_LIBRARY_PATH=$PWD/.fuzzkit/lib bench/fuzz_campaign.sh --prebuilt --build .fuzzkit/build --jobs 14 \
+    --seconds "$FUZZ_SECONDS" --runs "$RUNS" --targets "$rest" --out "$s/fuzz2" > "$s/fuzz2.log" 2>&1
+  note "fuzz rest done (rc=$?)"
+  wait
+  note "done"
+}
+
+snapshot() {
+  {
+    date +%T
+    cat "$s/steps.log" 2>/dev/null
+    for f in fuzz1 fuzz2; do grep "== fuzz campaign" "$s/$f.log" 2>/dev/null | tail -3; done
+    tail -3 "$s/gpu_ctest.log" "$s/train_models.log" "$s/fit_panoptic.log" "$s/random_budgets.log" 2>/dev/null
+    nvidia-smi --query-gpu=name,utilization.gpu,memory.used --format=csv,noheader || true
+    uptime
+  } > "$out/progress.txt" 2>&1
+  tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ply' --exclude='*.png' --exclude='new' \
+    --exclude='artifacts' "$s" out/gpu_memory_stress out/fitp/*.json out/fitp/*.log 2>/dev/null || true
+  if [ -f "$s/corpus.marker" ]; then
+    find tests/fuzz/corpus -type f -newer "$s/corpus.marker" -print0 | tar czf "$out/corpus.tgz" --null -T - 2>/dev/null || true
+    find "$s" -path '*artifacts*' -type f -print0 | tar czf "$out/artifacts.tgz" --null -T - 2>/dev/null || true
+  fi
+  [ -f "$s/panoptic_stage1_15MiB.atex" ] && cp "$s/panoptic_stage1_15MiB.atex" "$out/" || true
+}
+
+case $phase in
+  start)
+    [ -f "$s/steps.pid" ] && kill -0 "$(cat "$s/steps.pid")" 2>/dev/null || {
+      export -f steps
+      export RUNS FUZZ_SECONDS FUZZ_FIRST
+      setsid nohup bash -c 'source bench/device/common.sh; s=out/s23; steps' > "$s/orchestrator.log" 2>&1 &
+      echo $! > "$s/steps.pid"
+    }
+    ;&
+  wait)
+    while ! grep -q "done$" "$s/steps.log" 2>/dev/null; do
+      [ $(( $(date +%s) - start )) -ge "$CALL_SECONDS" ] && break
+      snapshot
+      sleep 15
+    done
+    snapshot
+    cat "$out/progress.txt"
+    ;;
+  *) echo "unknown phase $phase (start | wait)" >&2; exit 2 ;;
+esac
