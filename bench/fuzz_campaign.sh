@@ -21,7 +21,9 @@
 #   --prebuilt    use the targets already in DIR/fuzz as they are: no clang needed (for a
 #                 machine without clang, e.g. the lent GPU machines, with binaries built here;
 #                 bench/device/fuzz_kit.sh packs them with the libraries they load)
-#   --no-merge    leave tests/fuzz/corpus untouched
+#   --corpus DIR  the seed corpus, one folder per reader, into which new inputs are merged
+#                 (default tests/fuzz/corpus)
+#   --no-merge    leave the corpus untouched
 #
 # Needs clang and libclang-rt (Debian: clang libclang-rt-14-dev) unless --prebuilt. No GPU. The exit status is
 # 1 when any target found a crash, leak, timeout or out-of-memory input.
@@ -34,6 +36,7 @@ JOBS=$(nproc)
 BUILD=build-fuzz
 TARGETS=""
 OUT=""
+CORPUS=""
 MERGE=1
 while [ $# -gt 0 ]; do
   case $1 in
@@ -44,8 +47,9 @@ while [ $# -gt 0 ]; do
     --build) BUILD=$2; shift 2 ;;
     --targets) TARGETS=$2; shift 2 ;;
     --out) OUT=$2; shift 2 ;;
+    --corpus) CORPUS=$2; shift 2 ;;
     --no-merge) MERGE=0; shift ;;
-    -h|--help) sed -n '2,29p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,31p' "$0"; exit 0 ;;
     *) echo "fuzz_campaign.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -53,6 +57,7 @@ case $SECONDS_PER_TARGET in ''|*[!0-9]*) echo "fuzz_campaign.sh: --seconds must 
 case $RUNS in -1) ;; ''|*[!0-9]*|0) echo "fuzz_campaign.sh: --runs must be a positive whole number" >&2; exit 2 ;; esac
 case $JOBS in ''|*[!0-9]*|0) echo "fuzz_campaign.sh: --jobs must be a positive whole number" >&2; exit 2 ;; esac
 OUT=${OUT:-$BUILD/fuzz-campaign}
+CORPUS=${CORPUS:-$ROOT/tests/fuzz/corpus}
 START=$(date +%s)
 say() { echo "== fuzz campaign [$(( $(date +%s) - START ))s] $*"; }
 if [ "$PREBUILT" = 0 ]; then
@@ -98,7 +103,7 @@ ROWS=()
 FOUND=0
 for name in "${RUN[@]}"; do
   reader=${name#fuzz_}
-  seeds="$ROOT/tests/fuzz/corpus/$reader"
+  seeds="$CORPUS/$reader"
   work="$OUT/$name"
   rm -rf "$work"
   mkdir -p "$work/new" "$work/artifacts" "$seeds"

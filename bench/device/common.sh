@@ -5,13 +5,16 @@ set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/../.."
 BUILD=${ATEX_GPU_BUILD:-bg}  # git-ignored: on a lent machine only ignored folders persist between calls
 atex=$BUILD/bin/atex
-bb=.devdata/panoptic_basketball
-lego=.devdata/dnerf_lego_tiny/tiny_dnerf_data.npz
+bb=${ATEX_DEVDATA:-.devdata}/panoptic_basketball
+lego=${ATEX_DEVDATA:-.devdata}/dnerf_lego_tiny/tiny_dnerf_data.npz
 mkdir -p out
 
 # Configures source tree SRC for a Release CUDA build (sm_90) in DIR and builds TARGET... with
 # JOBS parallel jobs; BUILD_TREE_OPTIONS adds cmake options.
 build_tree() {  # SRC DIR JOBS TARGET...
+  # ATEX_SKIP_BUILD=1: the caller built already (background steps that outlive a device call must
+  # not touch the source tree, which the next call replaces)
+  [ -n "${ATEX_SKIP_BUILD:-}" ] && return 0
   local src=$1 dir=$2 jobs=$3
   shift 3
   # shellcheck disable=SC2086  # the options are words

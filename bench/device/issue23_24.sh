@@ -7,7 +7,8 @@
 # Every call leaves OUT/progress.txt, OUT/results.tgz (logs, tables, rows), OUT/corpus.tgz (fuzz
 # inputs new since the start) and, once fitted, OUT/panoptic_stage1_15MiB.atex.
 # Steps (logs in out/s23/):
-#   1. the CUDA build (bg: CLI and tests) and .oldsrc's CLI (build-old); .fuzzkit unpacked
+#   1. (in the start call) the CUDA build (bg: CLI and tests) and .oldsrc's CLI (build-old); copies
+#      under out/ of the fuzz kit, the corpus, the data and the lego sample
 #   2. GPU: the CUDA tests (ctest -L cuda), then fit_panoptic.sh's short models
 #      meanwhile: bench/fit_random_budgets.sh -n 1000 on the lego sample (8 fits at a time, on
 #      the GPU: the fit's backend is auto), and the fuzz campaign on FUZZ_FIRST (fast targets, 6
@@ -26,19 +27,34 @@ RUNS=${FUZZ_RUNS:-10000000}
 FUZZ_SECONDS=${FUZZ_SECONDS:-480}
 FUZZ_FIRST=${FUZZ_FIRST:-fuzz_image,fuzz_npz,fuzz_ply,fuzz_spz,fuzz_exr,fuzz_splat,fuzz_compressed_ply,fuzz_transforms_json}
 
+# Before the background starts (the next call replaces the source tree, its tracked files and
+# the carried folders): both builds, and copies under out/ of what the steps read.
+prepare() {
+  touch "$s/corpus.marker"
+  rm -rf "$s/kit" "$s/corpus"
+  mkdir -p "$s/kit"
+  tar -C "$s/kit" -xJf .fuzzkit/kit.tar.xz
+  cp -r tests/fuzz/corpus "$s/corpus"
+  cp samples/lego_adaptive_2MiB.atex "$s/lego.atex"
+  cp -r .devdata out/devdata
+  (build_old 6 > "$s/build_old.log" 2>&1 || echo "build-old failed" >> "$s/steps.log") &
+  cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES=90 \
+    -DATEX_DATA_DIR="$PWD/out/devdata" > "$s/build.log" 2>&1
+  cmake --build "$BUILD" -j 16 >> "$s/build.log" 2>&1 || { echo "build failed" >> "$s/steps.log"; tail -20 "$s/build.log"; }
+  wait
+}
+
 steps() {
   set +e
   local t0
   t0=$(date +%s)
   note() { echo "$(date +%T) [$(( $(date +%s) - t0 ))s] $*" >> "$s/steps.log"; }
-  note "build"
-  touch "$s/corpus.marker"
-  bench/device/fuzz_kit.sh unpack
-  (build_old 8 > "$s/build_old.log" 2>&1 || echo "build-old failed" >> "$s/steps.log") &
-  cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DATEX_CUDA=ON -DCMAKE_CUDA_ARCHITECTURES=90 \
-    -DATEX_DATA_DIR="$PWD/.devdata" > "$s/build.log" 2>&1
-  cmake --build "$BUILD" -j 16 >> "$s/build.log" 2>&1 || { note "build failed"; note "done"; return 1; }
-  wait
+  export ATEX_SKIP_BUILD=1 ATEX_DEVDATA=out/devdata
+  bb=out/devdata/panoptic_basketball
+  fuzz() {  # LOG-NAME JOBS TARGETS
+    LD_LIBRARY_PATH=$PWD/$s/kit/lib bench/fuzz_campaign.sh --prebuilt --build "$s/kit/build" --corpus "$s/corpus" \
+      --jobs "$2" --seconds "$FUZZ_SECONDS" --runs "$RUNS" --targets "$3" --out "$s/$1" > "$s/$1.log" 2>&1
+  }
   note "step 2: GPU tests and models | random budgets | fuzz $FUZZ_FIRST"
   (
     ctest --test-dir "$BUILD" -L cuda --output-on-failure -j 1 > "$s/gpu_ctest.log" 2>&1
@@ -47,12 +63,11 @@ steps() {
     echo "rc=$?" >> "$s/train_models.log"
   ) &
   (
-    OMP_NUM_THREADS=2 bench/fit_random_budgets.sh -n 1000 -s 3 -a "$atex" -i samples/lego_adaptive_2MiB.atex -j 8 \
+    OMP_NUM_THREADS=2 bench/fit_random_budgets.sh -n 1000 -s 3 -a "$atex" -i "$s/lego.atex" -j 8 \
       -o "$s/fit_random_budgets_lego.csv" > "$s/random_budgets.log" 2>&1
     note "random budgets rc=$?"
   ) &
-  LD_LIBRARY_PATH=$PWD/.fuzzkit/lib bench/fuzz_campaign.sh --prebuilt --build .fuzzkit/build --jobs 6 \
-    --seconds "$FUZZ_SECONDS" --runs "$RUNS" --targets "$FUZZ_FIRST" --out "$s/fuzz1" > "$s/fuzz1.log" 2>&1
+  fuzz fuzz1 6 "$FUZZ_FIRST"
   note "fuzz first done (rc=$?)"
   wait
   note "step 3: timed fits"
@@ -65,15 +80,15 @@ steps() {
   note "step 4: stress | fuzz rest, random budgets"
   (bench/device/gpu_memory_stress.sh > "$s/gpu_memory_stress.log" 2>&1; echo "rc=$?" >> "$s/gpu_memory_stress.log") &
   local rest
-  rest=$(ls tests/fuzz/fuzz_*.cc | xargs -n1 basename | sed 's/\.cc$//' | grep -vxF -f <(tr , '\n' <<<"$FUZZ_FIRST") | paste -sd,)
-  LD_LIBRARY_PATH=$PWD/.fuzzkit/lib bench/fuzz_campaign.sh --prebuilt --build .fuzzkit/build --jobs 14 \
-    --seconds "$FUZZ_SECONDS" --runs "$RUNS" --targets "$rest" --out "$s/fuzz2" > "$s/fuzz2.log" 2>&1
+  rest=$(ls "$s/kit/build/fuzz" | grep -vxF -f <(tr , '\n' <<<"$FUZZ_FIRST") | paste -sd,)
+  fuzz fuzz2 14 "$rest"
   note "fuzz rest done (rc=$?)"
   wait
   note "done"
 }
 
 snapshot() {
+  set +e  # a missing log is no failure here
   {
     date +%T
     cat "$s/steps.log" 2>/dev/null
@@ -83,9 +98,9 @@ snapshot() {
     uptime
   } > "$out/progress.txt" 2>&1
   tar czf "$out/results.tgz" --exclude='*.atex' --exclude='*.ply' --exclude='*.png' --exclude='new' \
-    --exclude='artifacts' "$s" out/gpu_memory_stress out/fitp/*.json out/fitp/*.log 2>/dev/null || true
+    --exclude='artifacts' --exclude="$s/kit" --exclude="$s/corpus" "$s" out/gpu_memory_stress out/fitp/*.json out/fitp/*.log 2>/dev/null || true
   if [ -f "$s/corpus.marker" ]; then
-    find tests/fuzz/corpus -type f -newer "$s/corpus.marker" -print0 | tar czf "$out/corpus.tgz" --null -T - 2>/dev/null || true
+    find "$s/corpus" -type f -newer "$s/corpus.marker" -print0 | tar czf "$out/corpus.tgz" --null -T - 2>/dev/null || true
     find "$s" -path '*artifacts*' -type f -print0 | tar czf "$out/artifacts.tgz" --null -T - 2>/dev/null || true
   fi
   [ -f "$s/panoptic_stage1_15MiB.atex" ] && cp "$s/panoptic_stage1_15MiB.atex" "$out/" || true
@@ -94,6 +109,7 @@ snapshot() {
 case $phase in
   start)
     [ -f "$s/steps.pid" ] && kill -0 "$(cat "$s/steps.pid")" 2>/dev/null || {
+      prepare
       export -f steps
       export RUNS FUZZ_SECONDS FUZZ_FIRST
       setsid nohup bash -c 'source bench/device/common.sh; s=out/s23; steps' > "$s/orchestrator.log" 2>&1 &
