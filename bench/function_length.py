@@ -27,6 +27,7 @@ import argparse
 import json
 import os
 import re
+import signal
 import sys
 
 CXX_EXTENSIONS = ('.cc', '.cpp', '.cxx', '.c', '.h', '.hh', '.hpp', '.cu', '.cuh')
@@ -459,4 +460,5 @@ def print_text(args, functions, files, failures):
 
 
 if __name__ == '__main__':
+    signal.signal(signal.SIGPIPE, signal.SIG_DFL)  # `| head` ends the listing quietly
     sys.exit(main())
