@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
 # Lines past 120 columns in the library, the CUDA backend, the converters and the tools
-# (.clang-format's ColumnLimit), as FILE:LINE: LENGTH, and their count on the last line.
-#   bench/format_check.sh [--fix]   --fix: clang-format exactly those lines (clang-format --lines)
-# Exit status 1 when a line is past the limit (after --fix: when one still is, e.g. a long URL).
+# (.clang-format's ColumnLimit), as FILE:LINE: LENGTH, and their count; then functions over 120 lines
+# and files over 500 lines there and in python/ (bench/function_length.py; test code is listed apart and
+# never fails the check; a "long function:" / "long file:" comment with a reason exempts one).
+#   bench/format_check.sh [--fix]   --fix: clang-format exactly the long lines (clang-format --lines)
+# Exit status 1 when a line is past the limit (after --fix: when one still is, e.g. a long URL), or a
+# function or file of non-test code is over its limit without a stated reason.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 fix=0
@@ -16,9 +19,10 @@ if [ $fix = 1 ]; then
     [ -n "$lines" ] && clang-format -i $lines "$f"
   done
 fi
+columns=0
 # Characters, not bytes (mawk counts bytes: "σ²" would count as four).
 # shellcheck disable=SC2086  # the file list is words
-python3 - $files <<'PY'
+python3 - $files <<'PY' || columns=1
 import sys
 n = 0
 for path in sys.argv[1:]:
@@ -30,3 +34,6 @@ for path in sys.argv[1:]:
 print("%d lines past 120 columns" % n)
 sys.exit(1 if n else 0)
 PY
+lengths=0
+python3 bench/function_length.py --files libatex kernels converters tools python || lengths=1
+exit $((columns | lengths))

@@ -5,6 +5,8 @@
 #                        atex (tests/bench/fake_atex.py)
 #   bench_lego_matrix    the real atex (CPU backend) on bench/configs/lego_cpu.json, end to end
 #   bench_charts         charts.py on bench/testdata/example_results.csv: four valid PNGs
+#   bench_function_length  bench/function_length.py (the function and file length check of
+#                        bench/format_check.sh) on synthetic sources of known function lengths
 # Needs a Python 3 interpreter; the charts test needs matplotlib (Debian python3-matplotlib) and
 # is skipped (exit 77) without it.
 find_package(Python3 COMPONENTS Interpreter)
@@ -24,6 +26,11 @@ add_test(NAME bench_lego_matrix
           --atex $<TARGET_FILE:atex_cli> --out ${PROJECT_BINARY_DIR}/bench_lego_matrix)
 set_tests_properties(bench_lego_matrix PROPERTIES TIMEOUT 600 LABELS bench SKIP_RETURN_CODE 77
   ENVIRONMENT "ATEX_DATA_DIR_DEFAULT=${ATEX_DATA_DIR};OMP_WAIT_POLICY=PASSIVE")
+
+add_test(NAME bench_function_length
+  COMMAND ${Python3_EXECUTABLE} ${ATEX_BENCH_TEST_DIR}/test_function_length.py
+          --work-dir ${PROJECT_BINARY_DIR}/bench_function_length)
+set_tests_properties(bench_function_length PROPERTIES TIMEOUT 60 LABELS bench)
 
 # The charts need matplotlib: use the first of the found interpreter and /usr/bin/python3 that
 # has it (a pyenv/venv python3 first on PATH often lacks it); ATEX_CHARTS_PYTHON overrides.

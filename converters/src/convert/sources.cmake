@@ -11,6 +11,7 @@ function(atex_converter_convert_tests)
   atex_add_test(NAME converter_convert_test
     SOURCES ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/convert_test.cc
             ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/frames_test.cc
+            ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/fourdgs_convert_test.cc
             ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/world_turn_test.cc
     LIBS atex_converters)
   target_include_directories(converter_convert_test PRIVATE ${PROJECT_SOURCE_DIR}/converters/src)

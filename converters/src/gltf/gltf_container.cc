@@ -233,6 +233,177 @@ void RemoveFromList(json& doc, const char* key, const char* name) {
   }
 }
 
+// The document of the container, refused when it is no JSON object or nests too deep.
+StatusOr<json> ParseDocument(const Container& container) {
+  json doc = json::parse(container.json.begin(), container.json.end(), nullptr, /*allow_exceptions=*/false);
+  if (doc.is_discarded()) return MakeError(StatusCode::kCorrupt, "glTF JSON does not parse");
+  if (!doc.is_object()) return MakeError(StatusCode::kCorrupt, "glTF JSON is not an object");
+  if (JsonDepth(doc) > kMaxJsonDepth) {
+    return MakeError(StatusCode::kLimitExceeded, "glTF JSON nests deeper than ", kMaxJsonDepth, " levels");
+  }
+  return doc;
+}
+
+// The bytes of a buffer's uri: a base64 data: URI, or an external file through `loader` (whose
+// size is added to *input_bytes, the bound of the meshopt expansion).
+StatusOr<std::vector<uint8_t>> LoadBufferUri(const std::string& text, const std::string& where, const UriLoader& loader,
+                                             const GltfImportOptions& options, uint64_t* input_bytes) {
+  if (text.rfind("data:", 0) == 0) {
+    const size_t comma = text.find(',');
+    if (comma == std::string::npos || text.substr(0, comma).find(";base64") == std::string::npos) {
+      return MakeError(StatusCode::kUnsupported, where, ": only base64 data: URIs are supported");
+    }
+    return Base64Decode(std::string_view(text).substr(comma + 1), where);
+  }
+  if (!loader)
+    return MakeError(StatusCode::kUnsupported, where, " refers to external file '", text,
+                     "'; read the file from disk instead");
+  ATEX_ASSIGN_OR_RETURN(std::string path, PercentDecode(text));
+  auto bytes = loader(path, options.max_decoded_bytes);
+  if (!bytes.ok()) return bytes.status().WithContext(where);
+  *input_bytes += bytes->size();
+  return bytes;
+}
+
+// The buffers and where each one's bytes are: its uri (the bytes kept in *owned), the GLB binary
+// chunk (buffer 0 of a GLB), or none for a meshopt fallback buffer.
+StatusOr<std::vector<BufferSource>> ResolveBuffers(const json& doc, const Container& container, const UriLoader& loader,
+                                                   const GltfImportOptions& options,
+                                                   std::vector<std::vector<uint8_t>>* owned, uint64_t* input_bytes) {
+  std::vector<BufferSource> buffers;
+  auto it = doc.find("buffers");
+  if (it == doc.end()) return buffers;
+  if (!it->is_array()) return MakeError(StatusCode::kCorrupt, "'buffers' is not an array");
+  owned->reserve(it->size());
+  for (size_t i = 0; i < it->size(); ++i) {
+    const json& b = (*it)[i];
+    const std::string where = StrCat("buffers[", i, "]");
+    if (!b.is_object()) return MakeError(StatusCode::kCorrupt, where, " is not an object");
+    BufferSource source;
+    ATEX_RETURN_IF_ERROR(ReadSize(b, "byteLength", true, 0, where, &source.length));
+    auto uri = b.find("uri");
+    if (uri != b.end()) {
+      if (!uri->is_string()) return MakeError(StatusCode::kCorrupt, where, ".uri is not a string");
+      ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes,
+                            LoadBufferUri(uri->get_ref<const std::string&>(), where, loader, options, input_bytes));
+      owned->push_back(std::move(bytes));
+      if (owned->back().size() < source.length) {
+        return MakeError(StatusCode::kTruncated, where, " has ", owned->back().size(), " bytes, byteLength says ",
+                         source.length);
+      }
+      source.data = owned->back().data();
+    } else if (container.glb && i == 0 && container.bin != nullptr) {
+      if (source.length > container.bin_size) {
+        return MakeError(StatusCode::kTruncated, where, ".byteLength ", source.length,
+                         " exceeds the GLB binary chunk (", container.bin_size, " bytes)");
+      }
+      source.data = container.bin;
+    } else {
+      const json* ext = nullptr;
+      if (auto e = b.find("extensions"); e != b.end() && e->is_object()) {
+        if (auto m = e->find(kExtMeshopt); m != e->end()) ext = &*m;
+      }
+      if (ext == nullptr || !ext->is_object() || ext->value("fallback", false) != true) {
+        return MakeError(StatusCode::kCorrupt, where,
+                         " has no uri and is neither the GLB binary chunk nor a meshopt fallback");
+      }
+    }
+    buffers.push_back(source);
+  }
+  return buffers;
+}
+
+// The start of the normalized buffer: every buffer with data, each 4-byte aligned; sets their
+// `base`.
+StatusOr<std::vector<uint8_t>> ConcatenateBuffers(std::vector<BufferSource>& buffers,
+                                                  const GltfImportOptions& options) {
+  std::vector<uint8_t> bin;
+  uint64_t plain_total = 0;
+  for (const auto& b : buffers) plain_total += b.data ? Align4(b.length) : 0;
+  if (plain_total > options.max_decoded_bytes)
+    return MakeError(StatusCode::kLimitExceeded, "glTF buffers hold ", plain_total, " bytes");
+  bin.reserve(plain_total);
+  for (auto& b : buffers) {
+    if (b.data == nullptr) continue;
+    bin.resize(Align4(bin.size()));
+    b.base = bin.size();
+    bin.insert(bin.end(), b.data, b.data + b.length);
+  }
+  return bin;
+}
+
+// Points every buffer view at the normalized buffer `bin`: a plain view at its buffer's copy, a
+// meshopt view at its decoded bytes, appended to `bin` (*decoded_total counts them against
+// `expansion_limit`; *had_meshopt is set).
+Status RewriteBufferViews(json& doc, const std::vector<BufferSource>& buffers, uint64_t expansion_limit,
+                          std::vector<uint8_t>& bin, bool* had_meshopt) {
+  uint64_t decoded_total = 0;
+  auto it = doc.find("bufferViews");
+  if (it == doc.end()) return Status::Ok();
+  if (!it->is_array()) return MakeError(StatusCode::kCorrupt, "'bufferViews' is not an array");
+  for (size_t i = 0; i < it->size(); ++i) {
+    json& view = (*it)[i];
+    const std::string where = StrCat("bufferViews[", i, "]");
+    if (!view.is_object()) return MakeError(StatusCode::kCorrupt, where, " is not an object");
+    uint64_t length = 0;
+    ATEX_RETURN_IF_ERROR(ReadSize(view, "byteLength", true, 0, where, &length));
+    json* ext = nullptr;
+    auto exts = view.find("extensions");
+    if (exts != view.end() && exts->is_object()) {
+      if (auto m = exts->find(kExtMeshopt); m != exts->end()) ext = &*m;
+    }
+    if (ext != nullptr) {
+      uint64_t start = 0;
+      ATEX_RETURN_IF_ERROR(DecodeMeshoptView(*ext, buffers, where + ".extensions.EXT_meshopt_compression", length,
+                                             expansion_limit - decoded_total, bin, &start));
+      decoded_total += length;
+      exts->erase(kExtMeshopt);
+      if (exts->empty()) view.erase("extensions");
+      view["buffer"] = 0;
+      view["byteOffset"] = start;
+      *had_meshopt = true;
+      continue;
+    }
+    uint64_t buffer = 0, offset = 0;
+    ATEX_RETURN_IF_ERROR(ReadSize(view, "buffer", true, 0, where, &buffer));
+    ATEX_RETURN_IF_ERROR(ReadSize(view, "byteOffset", false, 0, where, &offset));
+    if (buffer >= buffers.size()) return MakeError(StatusCode::kCorrupt, where, ".buffer ", buffer, " does not exist");
+    if (buffers[buffer].data == nullptr) {
+      return MakeError(StatusCode::kCorrupt, where, " reads fallback buffer ", buffer, ", which holds no data");
+    }
+    if (offset > buffers[buffer].length || length > buffers[buffer].length - offset) {
+      return MakeError(StatusCode::kCorrupt, where, ": bytes ", offset, "+", length, " exceed buffer ", buffer, " (",
+                       buffers[buffer].length, " bytes)");
+    }
+    view["buffer"] = 0;
+    view["byteOffset"] = buffers[buffer].base + offset;
+  }
+  return Status::Ok();
+}
+
+// A GLB of the document and the (4-byte aligned) binary chunk `bin`, empty for none.
+StatusOr<std::vector<uint8_t>> AssembleGlb(const json& doc, const std::vector<uint8_t>& bin) {
+  std::string text = DumpJson(doc);
+  text.resize(Align4(text.size()), ' ');
+  const uint64_t total = 12 + 8 + text.size() + (bin.empty() ? 0 : 8 + bin.size());
+  if (total > UINT32_MAX)
+    return MakeError(StatusCode::kLimitExceeded, "glTF of ", total, " bytes exceeds the 4 GiB GLB limit of the parser");
+  std::vector<uint8_t> glb;
+  glb.reserve(total);
+  PutU32(glb, kGlbMagic);
+  PutU32(glb, 2);
+  PutU32(glb, uint32_t(total));
+  PutU32(glb, uint32_t(text.size()));
+  PutU32(glb, kGlbChunkJson);
+  glb.insert(glb.end(), text.begin(), text.end());
+  if (!bin.empty()) {
+    PutU32(glb, uint32_t(bin.size()));
+    PutU32(glb, kGlbChunkBin);
+    glb.insert(glb.end(), bin.begin(), bin.end());
+  }
+  return glb;
+}
+
 }  // namespace
 
 StatusOr<std::string> PercentDecode(const std::string& uri) {
@@ -277,131 +448,19 @@ StatusOr<NormalizedGltf> NormalizeGltf(const uint8_t* data, size_t size, const U
                                        const GltfImportOptions& options) {
   ATEX_ASSIGN_OR_RETURN(Container container, SplitContainer(data, size));
   NormalizedGltf result;
+  ATEX_ASSIGN_OR_RETURN(result.doc, ParseDocument(container));
   json& doc = result.doc;
-  doc = json::parse(container.json.begin(), container.json.end(), nullptr, /*allow_exceptions=*/false);
-  if (doc.is_discarded()) return MakeError(StatusCode::kCorrupt, "glTF JSON does not parse");
-  if (!doc.is_object()) return MakeError(StatusCode::kCorrupt, "glTF JSON is not an object");
-  if (JsonDepth(doc) > kMaxJsonDepth) {
-    return MakeError(StatusCode::kLimitExceeded, "glTF JSON nests deeper than ", kMaxJsonDepth, " levels");
-  }
 
-  // Buffers: where each one's bytes are.
   std::vector<std::vector<uint8_t>> owned;  // decoded data: URIs and external files
-  std::vector<BufferSource> buffers;
   uint64_t input_bytes = size;
-  if (auto it = doc.find("buffers"); it != doc.end()) {
-    if (!it->is_array()) return MakeError(StatusCode::kCorrupt, "'buffers' is not an array");
-    owned.reserve(it->size());
-    for (size_t i = 0; i < it->size(); ++i) {
-      const json& b = (*it)[i];
-      const std::string where = StrCat("buffers[", i, "]");
-      if (!b.is_object()) return MakeError(StatusCode::kCorrupt, where, " is not an object");
-      BufferSource source;
-      ATEX_RETURN_IF_ERROR(ReadSize(b, "byteLength", true, 0, where, &source.length));
-      auto uri = b.find("uri");
-      if (uri != b.end()) {
-        if (!uri->is_string()) return MakeError(StatusCode::kCorrupt, where, ".uri is not a string");
-        const std::string& text = uri->get_ref<const std::string&>();
-        if (text.rfind("data:", 0) == 0) {
-          const size_t comma = text.find(',');
-          if (comma == std::string::npos || text.substr(0, comma).find(";base64") == std::string::npos) {
-            return MakeError(StatusCode::kUnsupported, where, ": only base64 data: URIs are supported");
-          }
-          ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes,
-                                Base64Decode(std::string_view(text).substr(comma + 1), where));
-          owned.push_back(std::move(bytes));
-        } else {
-          if (!loader)
-            return MakeError(StatusCode::kUnsupported, where, " refers to external file '", text,
-                             "'; read the file from disk instead");
-          ATEX_ASSIGN_OR_RETURN(std::string path, PercentDecode(text));
-          auto bytes = loader(path, options.max_decoded_bytes);
-          if (!bytes.ok()) return bytes.status().WithContext(where);
-          input_bytes += bytes->size();
-          owned.push_back(std::move(bytes).value());
-        }
-        if (owned.back().size() < source.length) {
-          return MakeError(StatusCode::kTruncated, where, " has ", owned.back().size(), " bytes, byteLength says ",
-                           source.length);
-        }
-        source.data = owned.back().data();
-      } else if (container.glb && i == 0 && container.bin != nullptr) {
-        if (source.length > container.bin_size) {
-          return MakeError(StatusCode::kTruncated, where, ".byteLength ", source.length,
-                           " exceeds the GLB binary chunk (", container.bin_size, " bytes)");
-        }
-        source.data = container.bin;
-      } else {
-        const json* ext = nullptr;
-        if (auto e = b.find("extensions"); e != b.end() && e->is_object()) {
-          if (auto m = e->find(kExtMeshopt); m != e->end()) ext = &*m;
-        }
-        if (ext == nullptr || !ext->is_object() || ext->value("fallback", false) != true) {
-          return MakeError(StatusCode::kCorrupt, where,
-                           " has no uri and is neither the GLB binary chunk nor a meshopt fallback");
-        }
-      }
-      buffers.push_back(source);
-    }
-  }
+  ATEX_ASSIGN_OR_RETURN(std::vector<BufferSource> buffers,
+                        ResolveBuffers(doc, container, loader, options, &owned, &input_bytes));
 
   // The normalized buffer: every buffer with data, then every decoded meshopt view.
-  std::vector<uint8_t> bin;
-  uint64_t plain_total = 0;
-  for (const auto& b : buffers) plain_total += b.data ? Align4(b.length) : 0;
-  if (plain_total > options.max_decoded_bytes)
-    return MakeError(StatusCode::kLimitExceeded, "glTF buffers hold ", plain_total, " bytes");
-  bin.reserve(plain_total);
-  for (auto& b : buffers) {
-    if (b.data == nullptr) continue;
-    bin.resize(Align4(bin.size()));
-    b.base = bin.size();
-    bin.insert(bin.end(), b.data, b.data + b.length);
-  }
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bin, ConcatenateBuffers(buffers, options));
   const uint64_t expansion_limit =
       std::min<uint64_t>(options.max_decoded_bytes, kMeshoptMaxExpansion * input_bytes + (1u << 20));
-  uint64_t decoded_total = 0;
-  if (auto it = doc.find("bufferViews"); it != doc.end()) {
-    if (!it->is_array()) return MakeError(StatusCode::kCorrupt, "'bufferViews' is not an array");
-    for (size_t i = 0; i < it->size(); ++i) {
-      json& view = (*it)[i];
-      const std::string where = StrCat("bufferViews[", i, "]");
-      if (!view.is_object()) return MakeError(StatusCode::kCorrupt, where, " is not an object");
-      uint64_t length = 0;
-      ATEX_RETURN_IF_ERROR(ReadSize(view, "byteLength", true, 0, where, &length));
-      json* ext = nullptr;
-      auto exts = view.find("extensions");
-      if (exts != view.end() && exts->is_object()) {
-        if (auto m = exts->find(kExtMeshopt); m != exts->end()) ext = &*m;
-      }
-      if (ext != nullptr) {
-        uint64_t start = 0;
-        ATEX_RETURN_IF_ERROR(DecodeMeshoptView(*ext, buffers, where + ".extensions.EXT_meshopt_compression", length,
-                                               expansion_limit - decoded_total, bin, &start));
-        decoded_total += length;
-        exts->erase(kExtMeshopt);
-        if (exts->empty()) view.erase("extensions");
-        view["buffer"] = 0;
-        view["byteOffset"] = start;
-        result.had_meshopt = true;
-        continue;
-      }
-      uint64_t buffer = 0, offset = 0;
-      ATEX_RETURN_IF_ERROR(ReadSize(view, "buffer", true, 0, where, &buffer));
-      ATEX_RETURN_IF_ERROR(ReadSize(view, "byteOffset", false, 0, where, &offset));
-      if (buffer >= buffers.size())
-        return MakeError(StatusCode::kCorrupt, where, ".buffer ", buffer, " does not exist");
-      if (buffers[buffer].data == nullptr) {
-        return MakeError(StatusCode::kCorrupt, where, " reads fallback buffer ", buffer, ", which holds no data");
-      }
-      if (offset > buffers[buffer].length || length > buffers[buffer].length - offset) {
-        return MakeError(StatusCode::kCorrupt, where, ": bytes ", offset, "+", length, " exceed buffer ", buffer, " (",
-                         buffers[buffer].length, " bytes)");
-      }
-      view["buffer"] = 0;
-      view["byteOffset"] = buffers[buffer].base + offset;
-    }
-  }
+  ATEX_RETURN_IF_ERROR(RewriteBufferViews(doc, buffers, expansion_limit, bin, &result.had_meshopt));
   // tinygltf would try to resolve image URIs; splat import never needs images.
   doc.erase("images");
   RemoveFromList(doc, "extensionsUsed", kExtMeshopt);
@@ -412,25 +471,7 @@ StatusOr<NormalizedGltf> NormalizeGltf(const uint8_t* data, size_t size, const U
   } else {
     doc["buffers"] = json::array({{{"byteLength", bin.size()}}});
   }
-
-  std::string text = DumpJson(doc);
-  text.resize(Align4(text.size()), ' ');
-  const uint64_t total = 12 + 8 + text.size() + (bin.empty() ? 0 : 8 + bin.size());
-  if (total > UINT32_MAX)
-    return MakeError(StatusCode::kLimitExceeded, "glTF of ", total, " bytes exceeds the 4 GiB GLB limit of the parser");
-  std::vector<uint8_t>& glb = result.glb;
-  glb.reserve(total);
-  PutU32(glb, kGlbMagic);
-  PutU32(glb, 2);
-  PutU32(glb, uint32_t(total));
-  PutU32(glb, uint32_t(text.size()));
-  PutU32(glb, kGlbChunkJson);
-  glb.insert(glb.end(), text.begin(), text.end());
-  if (!bin.empty()) {
-    PutU32(glb, uint32_t(bin.size()));
-    PutU32(glb, kGlbChunkBin);
-    glb.insert(glb.end(), bin.begin(), bin.end());
-  }
+  ATEX_ASSIGN_OR_RETURN(result.glb, AssembleGlb(doc, bin));
   return result;
 }
 

@@ -3,6 +3,7 @@
 list(APPEND ATEX_CONVERTER_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/motion_fit.cc
   ${CMAKE_CURRENT_LIST_DIR}/splatv_format.cc
+  ${CMAKE_CURRENT_LIST_DIR}/splatv_camera.cc
   ${CMAKE_CURRENT_LIST_DIR}/splatv_export.cc)
 function(atex_converter_splatv_tests)
   atex_add_test(NAME converter_splatv_test

@@ -7,6 +7,7 @@ list(APPEND ATEX_CONVERTER_SOURCES
 function(atex_converter_spz_tests)
   atex_add_test(NAME converter_spz_test
     SOURCES ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/spz_test.cc
+            ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/spz_handbuilt_test.cc
     LIBS atex_converters ${ATEX_ZSTD_TARGET} ZLIB::ZLIB)
   target_include_directories(converter_spz_test PRIVATE ${PROJECT_SOURCE_DIR}/converters/src)
   # Independent decoder check: the reference SPZ library (npm @adobe/spz, the WASM
