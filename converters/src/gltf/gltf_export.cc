@@ -34,8 +34,7 @@ const uint8_t* Bytes(const std::vector<T>& v) {
 }
 
 double Sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }
-
-// The sRGB transfer function's inverse (IEC 61966-2-1) for v in [0, 1].
+// The inverse of the sRGB transfer function (IEC 61966-2-1), v in [0, 1].
 double SrgbToLinear(double v) { return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4); }
 
 class SplatExporter {
@@ -187,9 +186,8 @@ Status SplatExporter::AddBase(const Gaussians& g, json& attributes) {
   }
 
   if (options_.color_fallback) {
-    // The diffuse colour clamp(0.5 + C0 * SH_0) is in the splats' colour space (srgb_rec709_display),
-    // but COLOR_0 holds linear values (glTF 2.0), so it is decoded from sRGB as the extension's
-    // fallback section says. Alpha is the opacity, which is linear already.
+    // clamp(0.5 + C0 * SH_0) is in our colour space (srgb_rec709_display); COLOR_0 is linear (glTF
+    // 2.0), so it is decoded from sRGB, as the extension's fallback section says. Alpha: the opacity.
     constexpr double kC0 = 0.28209479177387814;
     std::vector<uint8_t> rgba(n * 4);  // [N][4]
     for (size_t i = 0; i < n; ++i) {
