@@ -34,6 +34,8 @@ const uint8_t* Bytes(const std::vector<T>& v) {
 }
 
 double Sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }
+// The inverse of the sRGB transfer function (IEC 61966-2-1), v in [0, 1].
+double SrgbToLinear(double v) { return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4); }
 
 class SplatExporter {
  public:
@@ -155,7 +157,7 @@ Status SplatExporter::AddBase(const Gaussians& g, json& attributes) {
 
   if (options_.quantize) {
     ATEX_ASSIGN_OR_RETURN(int sview, writer_.AddView({q.scales.data(), n, 8, true, MeshoptFilter::kNone}));
-    attributes[gltf::kAttrScale] = writer_.AddAccessor(sview, 0, gltf::kComponentShort, true, n, "VEC3");
+    attributes[gltf::kAttrScale] = writer_.AddAccessor(sview, 0, gltf::kComponentUnsignedShort, true, n, "VEC3");
     ATEX_ASSIGN_OR_RETURN(int oview, writer_.AddView({q.opacities.data(), n, 4, true, MeshoptFilter::kNone}));
     attributes[gltf::kAttrOpacity] = writer_.AddAccessor(oview, 0, gltf::kComponentUnsignedShort, true, n, "SCALAR");
   } else {
@@ -184,12 +186,14 @@ Status SplatExporter::AddBase(const Gaussians& g, json& attributes) {
   }
 
   if (options_.color_fallback) {
+    // clamp(0.5 + C0 * SH_0) is in our colour space (srgb_rec709_display); COLOR_0 is linear (glTF
+    // 2.0), so it is decoded from sRGB, as the extension's fallback section says. Alpha: the opacity.
     constexpr double kC0 = 0.28209479177387814;
     std::vector<uint8_t> rgba(n * 4);  // [N][4]
     for (size_t i = 0; i < n; ++i) {
       for (int c = 0; c < 3; ++c) {
         const double v = std::clamp(0.5 + kC0 * g.sh[i * k_count * 3 + c], 0.0, 1.0);
-        rgba[i * 4 + c] = uint8_t(std::lround(v * 255));
+        rgba[i * 4 + c] = uint8_t(std::lround(SrgbToLinear(v) * 255));
       }
       rgba[i * 4 + 3] = uint8_t(std::lround(double(opacities[i]) * 255));
     }

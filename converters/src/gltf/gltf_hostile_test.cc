@@ -174,8 +174,9 @@ TEST(GltfHostile, ForgedQuantizedAccessorsAndFrames) {
             StatusCode::kCorrupt);  // signed opacity
   EXPECT_EQ(edit([&](json& d) { accessor(d, "KHR_gaussian_splatting:ROTATION")["componentType"] = 5121; }),
             StatusCode::kCorrupt);  // unsigned rotation
-  EXPECT_EQ(edit([&](json& d) { accessor(d, "KHR_gaussian_splatting:SCALE")["componentType"] = 5123; }),
-            StatusCode::kCorrupt);  // the extension lists signed scales only
+  EXPECT_EQ(edit([&](json& d) { accessor(d, "KHR_gaussian_splatting:SCALE")["componentType"] = 5120; }),
+            StatusCode::kUnsupported);  // signed byte scales: not in the extension, nor ever written by atex
+  EXPECT_EQ(edit([&](json& d) { accessor(d, "KHR_gaussian_splatting:SCALE")["type"] = "VEC4"; }), StatusCode::kCorrupt);
   EXPECT_EQ(edit([&](json& d) { accessor(d, "KHR_gaussian_splatting:SH_DEGREE_0_COEF_0")["componentType"] = 5122; }),
             StatusCode::kCorrupt);  // SH is float only
   // A byteStride smaller than POSITION's 6-byte element.
@@ -189,9 +190,11 @@ TEST(GltfHostile, ForgedQuantizedAccessorsAndFrames) {
   EXPECT_EQ(edit([](json& d) { d["nodes"][0]["scale"] = {-1.0, -1.0, -1.0}; }), StatusCode::kUnsupported);
   EXPECT_NE(edit([](json& d) { d["nodes"][0]["scale"] = {1e300, 1e300, 1e300}; }), StatusCode::kOk);
   EXPECT_NE(edit([](json& d) { d["nodes"][0]["translation"] = {1e300, 0.0, 0.0}; }), StatusCode::kOk);
-  // A negative stored scale (the extension's linear scales must be positive).
+  // A negative stored scale (the extension's linear scales must be positive) in the SHORT layout of
+  // atex's earlier --quantize files, which our importer still reads.
   GlbParts p = testing::SplitGlb(ValidGlb(false, true));
-  const json& a = p.json["accessors"][AttributeAccessor(p.json, "KHR_gaussian_splatting:SCALE")];
+  json& a = p.json["accessors"][AttributeAccessor(p.json, "KHR_gaussian_splatting:SCALE")];
+  a["componentType"] = 5122;
   const size_t at = p.json["bufferViews"][a["bufferView"].get<int>()]["byteOffset"].get<size_t>();
   p.bin[at + 1] = 0x80;  // int16 component 0 of element 0 becomes negative
   EXPECT_EQ(Decode(testing::JoinGlb(p.json, p.bin)), StatusCode::kOutOfRange);

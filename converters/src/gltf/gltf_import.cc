@@ -20,6 +20,7 @@
 #include "gltf/tinygltf_config.h"
 
 #include "gltf/gltf_accessors.h"
+#include "gltf/gltf_import_base.h"
 #include "gltf/sh_rotation.h"
 #endif
 
@@ -28,122 +29,10 @@ namespace atex {
 #ifdef ATEX_HAVE_TINYGLTF
 namespace {
 
+using gltf::ReadAttribute;
 using nlohmann::json;
-// Reads attribute `name` of a primitive as floats, checking its shape; `normalized_integers`: integer
-// component types must be normalized (KHR_gaussian_splatting's ROTATION and OPACITY).
-Status ReadAttribute(const tinygltf::Model& model, const tinygltf::Primitive& primitive, const std::string& name,
-                     int components, std::initializer_list<int> types, size_t count, std::vector<float>* out,
-                     bool* present = nullptr, bool normalized_integers = false) {
-  auto it = primitive.attributes.find(name);
-  if (it == primitive.attributes.end()) {
-    if (present != nullptr) {
-      *present = false;
-      return Status::Ok();
-    }
-    return MakeError(StatusCode::kCorrupt, "splat primitive lacks attribute ", name);
-  }
-  if (present != nullptr) *present = true;
-  const std::string where = "attribute " + name;
-  ATEX_ASSIGN_OR_RETURN(gltf::AccessorData a, gltf::ResolveAccessor(model, it->second, where));
-  ATEX_RETURN_IF_ERROR(gltf::CheckAccessor(a, components, types, count, where));
-  if (normalized_integers && a.component_type != gltf::kComponentFloat && !a.normalized) {
-    return MakeError(StatusCode::kCorrupt, where, " has integer components that are not normalized");
-  }
-  return gltf::ReadFloats(a, where, out);
-}
 
 const std::initializer_list<int> kFloatOnly = {gltf::kComponentFloat};
-const std::initializer_list<int> kRotationTypes = {gltf::kComponentFloat, gltf::kComponentByte, gltf::kComponentShort};
-const std::initializer_list<int> kScaleTypes = {gltf::kComponentFloat, gltf::kComponentByte, gltf::kComponentShort};
-const std::initializer_list<int> kOpacityTypes = {gltf::kComponentFloat, gltf::kComponentUnsignedByte,
-                                                  gltf::kComponentUnsignedShort};
-
-// The base attributes of one primitive, converted to our raw parameters.
-StatusOr<Gaussians> ReadBase(const tinygltf::Model& model, const tinygltf::Primitive& primitive,
-                             const GltfImportOptions& options) {
-  if (primitive.mode != gltf::kModePoints) {
-    return MakeError(StatusCode::kCorrupt, "splat primitive has mode ", primitive.mode,
-                     ", KHR_gaussian_splatting needs POINTS (0)");
-  }
-  Gaussians g;
-  std::vector<float> positions;
-  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrPosition, 3,
-                                     {gltf::kComponentFloat, gltf::kComponentByte, gltf::kComponentUnsignedByte,
-                                      gltf::kComponentShort, gltf::kComponentUnsignedShort},
-                                     0, &positions));
-  const size_t n = positions.size() / 3;
-  if (n > options.max_gaussians)
-    return MakeError(StatusCode::kLimitExceeded, n, " Gaussians exceed the limit of ", options.max_gaussians);
-  g.positions = std::move(positions);
-
-  std::vector<float> xyzw, scales, opacities;
-  ATEX_RETURN_IF_ERROR(
-      ReadAttribute(model, primitive, gltf::kAttrRotation, 4, kRotationTypes, n, &xyzw, nullptr, true));
-  ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::kAttrScale, 3, kScaleTypes, n, &scales));
-  ATEX_RETURN_IF_ERROR(
-      ReadAttribute(model, primitive, gltf::kAttrOpacity, 1, kOpacityTypes, n, &opacities, nullptr, true));
-  g.rotations.resize(n * 4);
-  for (size_t i = 0; i < n; ++i) {
-    g.rotations[i * 4 + 0] = xyzw[i * 4 + 3];
-    g.rotations[i * 4 + 1] = xyzw[i * 4 + 0];
-    g.rotations[i * 4 + 2] = xyzw[i * 4 + 1];
-    g.rotations[i * 4 + 3] = xyzw[i * 4 + 2];
-  }
-  g.log_scales.resize(n * 3);
-  for (size_t i = 0; i < n * 3; ++i) {
-    if (!(scales[i] >= 0)) {
-      return MakeError(StatusCode::kOutOfRange, "attribute ", gltf::kAttrScale, " element ", i / 3, " component ",
-                       i % 3, " is ", scales[i], " (scales must be positive)");
-    }
-    // A zero scale (flat splats of some tools) becomes the smallest normal float's log.
-    g.log_scales[i] = float(std::log(std::max(double(scales[i]), double(std::numeric_limits<float>::min()))));
-  }
-  g.opacity_logits.resize(n);
-  constexpr double kEps = 1e-7;  // opacity 0 or 1 has an infinite logit: clamp to a finite one
-  for (size_t i = 0; i < n; ++i) {
-    if (!(opacities[i] >= 0 && opacities[i] <= 1)) {
-      return MakeError(StatusCode::kOutOfRange, "attribute ", gltf::kAttrOpacity, " element ", i, " is ", opacities[i],
-                       " (outside [0, 1])");
-    }
-    const double o = std::clamp(double(opacities[i]), kEps, 1 - kEps);
-    g.opacity_logits[i] = float(std::log(o / (1 - o)));
-  }
-
-  // SH: degree 0 is required; higher degrees only when complete (the extension forbids partial degrees).
-  int degree = -1;
-  for (int l = 0; l <= kMaxShDegree; ++l) {
-    bool complete = true, any = false;
-    for (int c = 0; c <= 2 * l; ++c) {
-      const bool has = primitive.attributes.count(gltf::ShAttribute(l, c)) != 0;
-      complete = complete && has;
-      any = any || has;
-    }
-    if (complete) {
-      degree = l;
-    } else {
-      if (any) return MakeError(StatusCode::kCorrupt, "SH degree ", l, " is only partially present");
-      break;
-    }
-  }
-  if (degree < 0) {
-    return MakeError(StatusCode::kUnsupported, "splat primitive has no ", gltf::ShAttribute(0, 0),
-                     " (other lighting methods are not supported)");
-  }
-  g.sh_degree = degree;
-  const size_t k_count = size_t(g.sh_coeffs());
-  g.sh.resize(n * k_count * 3);
-  std::vector<float> coef;
-  for (int l = 0; l <= degree; ++l) {
-    for (int c = 0; c <= 2 * l; ++c) {
-      ATEX_RETURN_IF_ERROR(ReadAttribute(model, primitive, gltf::ShAttribute(l, c), 3, kFloatOnly, n, &coef));
-      const size_t k = size_t(l * l + c);
-      for (size_t i = 0; i < n; ++i) {
-        for (int ch = 0; ch < 3; ++ch) g.sh[(i * k_count + k) * 3 + ch] = coef[i * 3 + ch];
-      }
-    }
-  }
-  return g;
-}
 
 // Bakes a node transform (rotation + uniform scale + translation) into the Gaussians.
 Status BakeTransform(const gltf::Mat4& m, Gaussians& g) {
@@ -314,13 +203,13 @@ const json* FindPath(const json& root, std::initializer_list<const char*> keys) 
 // KHR_gaussian_splatting_compression_spz_2 (its accessors then have no data), else from the
 // accessors.
 StatusOr<Gaussians> ReadPrimitiveBase(const tinygltf::Model& model, const json& doc, const gltf::SplatPrimitive& sp,
-                                      const GltfImportOptions& options) {
+                                      const GltfImportOptions& options, bool ours) {
   const tinygltf::Primitive& primitive = model.meshes[sp.mesh].primitives[sp.primitive];
   // FindSplatPrimitives found this primitive through the same path, so at() cannot throw here.
   const json& entry = doc.at("meshes").at(sp.mesh).at("primitives").at(sp.primitive);
   const json* khr = FindPath(entry, {"extensions", gltf::kKhrGaussianSplatting});
   const json* spz = khr ? FindPath(*khr, {"extensions", gltf::kKhrSpz2}) : nullptr;
-  if (spz == nullptr) return ReadBase(model, primitive, options);
+  if (spz == nullptr) return gltf::ReadBase(model, primitive, options, ours);
   if (primitive.mode != gltf::kModePoints) {
     return MakeError(StatusCode::kCorrupt, "splat primitive has mode ", primitive.mode,
                      ", KHR_gaussian_splatting needs POINTS (0)");
@@ -338,7 +227,7 @@ StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, cons
     // Someone else's file: base attributes of every splat primitive, transforms baked in.
     for (size_t i = 0; i < splats.size(); ++i) {
       const auto& sp = splats[i];
-      auto g = ReadPrimitiveBase(model, doc, sp, options);
+      auto g = ReadPrimitiveBase(model, doc, sp, options, false);
       if (!g.ok()) return g.status().WithContext(StrCat("meshes[", sp.mesh, "].primitives[", sp.primitive, "]"));
       ATEX_RETURN_IF_ERROR(BakeTransform(sp.world, *g));
       if (asset.gaussians.size() + g->size() > options.max_gaussians) {
@@ -369,7 +258,7 @@ StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, cons
   }
   const auto& sp = splats[0];
   const tinygltf::Primitive& primitive = model.meshes[sp.mesh].primitives[sp.primitive];
-  ATEX_ASSIGN_OR_RETURN(asset.gaussians, ReadPrimitiveBase(model, doc, sp, options));
+  ATEX_ASSIGN_OR_RETURN(asset.gaussians, ReadPrimitiveBase(model, doc, sp, options, true));
   ATEX_RETURN_IF_ERROR(ApplyQuantizationFrame(sp.world, asset.gaussians));
   const json& khr = doc["meshes"][sp.mesh]["primitives"][sp.primitive]["extensions"][gltf::kKhrGaussianSplatting];
   if (!khr.is_object()) return MakeError(StatusCode::kCorrupt, gltf::kKhrGaussianSplatting, " is not an object");

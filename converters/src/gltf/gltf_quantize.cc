@@ -89,11 +89,12 @@ StatusOr<QuantizedGeometry> QuantizeGeometry(const Gaussians& g, const std::vect
       qmax[k] = std::max(qmax[k], q);
 
       const double linear = std::exp(double(g.log_scales[i * 3 + k])) / double(s);
-      const double steps = std::round(linear * kShortMax);
-      if (steps > kShortMax) ++out.clipped_scales;
+      const double steps = std::round(linear * kUnsignedShortMax);
+      if (steps > kUnsignedShortMax) ++out.clipped_scales;
       // NaN log-scales are refused by ValidateAsset before export; clamp keeps any value in range.
-      const long qs = std::isfinite(steps) ? long(std::clamp(steps, 1.0, kShortMax)) : long(kShortMax);
-      PutI16(&out.scales[i * 8 + 2 * k], qs);
+      const double qs = std::isfinite(steps) ? std::clamp(steps, 1.0, kUnsignedShortMax) : kUnsignedShortMax;
+      const uint16_t us = uint16_t(qs);
+      std::memcpy(&out.scales[i * 8 + 2 * k], &us, 2);
     }
     const long qo = std::clamp(std::lround(double(opacities[i]) * kUnsignedShortMax), 0L, 65535L);
     const uint16_t o = uint16_t(qo);

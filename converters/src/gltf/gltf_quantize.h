@@ -9,10 +9,12 @@
 //             upright turn, comes after; the exporter sets node.translation = R * center).
 //             s is the largest half-extent of the positions' bounding box (1 when it is 0), so
 //             the error is at most s / 65534 per axis (plus float rounding of the node values).
-//   SCALE     SHORT normalized VEC3, stride 8, in the same node units: the linear scale divided
-//             by s, rounded, kept in [1, 32767]: error at most s / 65534; scales below one step
-//             (s / 32767) become one step, scales above s (a splat larger than half the scene)
-//             are clipped to s.
+//   SCALE     UNSIGNED_SHORT normalized VEC3, stride 8, in the same node units: the linear scale
+//             divided by s, rounded, kept in [1, 65535]: error at most s / 131070; scales below
+//             one step (s / 65535) become one step, scales above s (a splat larger than half the
+//             scene) are clipped to s. KHR_gaussian_splatting (since its April 2026 editorial
+//             review) lists only float and unsigned integer types for SCALE, whose values are
+//             linear and never negative; signed types belonged to the superseded log-space text.
 //   OPACITY   UNSIGNED_SHORT normalized SCALAR, stride 4: error at most 1 / 131070.
 //   ROTATION  BYTE normalized VEC4 (x, y, z, w), stride 4: each component within 1 / 254 of
 //             the unit quaternion (with meshopt the exporter uses the QUATERNION filter instead).
@@ -38,7 +40,7 @@ struct PositionFrame {
 struct QuantizedGeometry {
   PositionFrame frame;
   std::vector<uint8_t> positions;  // [N][8] int16 x, y, z, 0
-  std::vector<uint8_t> scales;     // [N][8] int16 sx, sy, sz, 0
+  std::vector<uint8_t> scales;     // [N][8] uint16 sx, sy, sz, 0
   std::vector<uint8_t> opacities;  // [N][4] uint16, 0
   nlohmann::json position_min, position_max;  // per-component integers, as glTF wants for integer accessors
   size_t clipped_scales = 0;      // components clipped to s

@@ -75,7 +75,7 @@ TEST(GltfQuantize, DocumentUsesNormalizedIntegersTheExtensionsAllow) {
   auto type_of = [&](const char* name) { return p.json["accessors"][attrs[name].get<int>()]; };
   EXPECT_EQ(type_of("POSITION")["componentType"], 5122);
   EXPECT_EQ(type_of("KHR_gaussian_splatting:ROTATION")["componentType"], 5120);
-  EXPECT_EQ(type_of("KHR_gaussian_splatting:SCALE")["componentType"], 5122);
+  EXPECT_EQ(type_of("KHR_gaussian_splatting:SCALE")["componentType"], 5123);  // unsigned: linear, never negative
   EXPECT_EQ(type_of("KHR_gaussian_splatting:OPACITY")["componentType"], 5123);
   for (const char* name : {"POSITION", "KHR_gaussian_splatting:ROTATION", "KHR_gaussian_splatting:SCALE",
                            "KHR_gaussian_splatting:OPACITY"}) {
@@ -118,9 +118,15 @@ TEST(GltfQuantize, DocumentUsesNormalizedIntegersTheExtensionsAllow) {
   }
   // Scales are in the node's units too: the player multiplies them by s.
   const int scale = attrs["KHR_gaussian_splatting:SCALE"].get<int>();
-  EXPECT_EQ(Stored(p, scale, 0, 0), 32767);  // clipped at s
+  EXPECT_EQ(Stored(p, scale, 0, 0), 65535);  // clipped at s
   EXPECT_EQ(Stored(p, scale, 1, 1), 1);      // one step
-  EXPECT_NEAR(s * double(Stored(p, scale, 7, 2)) / 32767, std::exp(double(g.log_scales[7 * 3 + 2])), s / 65534);
+  for (size_t i = 2; i < g.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(s * double(Stored(p, scale, i, k)) / 65535, std::exp(double(g.log_scales[i * 3 + size_t(k)])),
+                  s / 131070 * (1 + 1e-6))
+          << "Gaussian " << i;
+    }
+  }
 }
 
 #ifdef ATEX_HAVE_TINYGLTF
@@ -145,8 +151,8 @@ TEST(GltfQuantize, ImportIsWithinTheStatedError) {
         const size_t j = i * 3 + size_t(k);
         EXPECT_NEAR(b.positions[j], g.positions[j], s / 65534 + 1e-6) << i;
         exact_positions += b.positions[j] == g.positions[j];
-        const double want = std::clamp(std::exp(double(g.log_scales[j])), s / 32767, s);
-        EXPECT_NEAR(std::exp(double(b.log_scales[j])), want, s / 65534 * (1 + 1e-4)) << i;
+        const double want = std::clamp(std::exp(double(g.log_scales[j])), s / 65535, s);
+        EXPECT_NEAR(std::exp(double(b.log_scales[j])), want, s / 131070 * (1 + 1e-4)) << i;
       }
       const double norm = std::sqrt(double(g.rotations[i * 4]) * g.rotations[i * 4] +
                                     double(g.rotations[i * 4 + 1]) * g.rotations[i * 4 + 1] +

@@ -7,6 +7,7 @@ list(APPEND ATEX_CONVERTER_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/gltf_container.cc
   ${CMAKE_CURRENT_LIST_DIR}/gltf_accessors.cc
   ${CMAKE_CURRENT_LIST_DIR}/gltf_import.cc
+  ${CMAKE_CURRENT_LIST_DIR}/gltf_import_base.cc
   ${CMAKE_CURRENT_LIST_DIR}/gltf_import_extensions.cc
   ${CMAKE_CURRENT_LIST_DIR}/gltf_import_scene.cc
   ${CMAKE_CURRENT_LIST_DIR}/gltf_spz.cc
@@ -22,6 +23,7 @@ function(atex_converter_gltf_tests)
             ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/gltf_hostile_test.cc
             ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/gltf_spz_test.cc
             ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/gltf_quantize_test.cc
+            ${CMAKE_CURRENT_FUNCTION_LIST_DIR}/gltf_khr_spec_test.cc
     LIBS atex_converters
     LABELS hostile
     TIMEOUT 300)

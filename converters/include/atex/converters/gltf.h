@@ -5,7 +5,8 @@
 //     attributes: POSITION (float, with min/max), KHR_gaussian_splatting:ROTATION (unit
 //     quaternion x y z w), :SCALE (linear, exp of our log-scale), :OPACITY (sigmoid of our
 //     logit), :SH_DEGREE_l_COEF_n (raw SH coefficients, DC included; colour = SH + 0.5),
-//     plus COLOR_0 (RGBA8 from the DC term and opacity) for point-cloud fallback.
+//     plus COLOR_0 (RGBA8: the DC colour decoded from sRGB to linear, and the opacity) for
+//     point-cloud fallback.
 //     kernel "ellipse", colorSpace "srgb_rec709_display". Any player that knows the
 //     Khronos extension shows the (canonical, or --time baked) static scene.
 //   * Our two extensions nested in the KHR_gaussian_splatting object, listed in
@@ -109,7 +110,7 @@ struct GltfExportOptions {
   // KHR_mesh_quantization: the base attributes as normalized integers where KHR_gaussian_splatting
   // allows them (lossy; gltf_quantize.h has the layout and error bounds): POSITION int16 in the
   // node's frame (the node's uniform scale and translation map [-1, 1]^3 onto the scene's bounds),
-  // ROTATION int8 (int16 with the meshopt QUATERNION filter), SCALE int16 in the same node units,
+  // ROTATION int8 (int16 with the meshopt QUATERNION filter), SCALE uint16 in the same node units,
   // OPACITY uint16; SH stays float (the extension allows no other type). The extension is then
   // required, the raw parameters are not written (import gives the quantised values). Combines
   // with `meshopt`; not with `spz` (kInvalidArgument).
