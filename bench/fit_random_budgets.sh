@@ -64,7 +64,7 @@ fit_one() {  # BUDGET INDEX
   end=$(date +%s.%N)
   bytes=$(stat -c %s "$file")
   "$atex" verify "$file" > /dev/null 2>&1 || ok=0
-  echo "$budget,$bytes,$(echo "$end - $start" | bc),$([ $ok = 1 ] && echo verified || echo verify-failed)"
+  echo "$budget,$bytes,$(awk -v a="$start" -v b="$end" 'BEGIN { printf "%.2f", b - a }'),$([ $ok = 1 ] && echo verified || echo verify-failed)"
   rm -f "$file"
 }
 

@@ -112,11 +112,9 @@ struct DeformEngine::Impl {
                   float* grad_mlp, const GaussianTensors& grad_canonical);
 };
 
-Status DeformEngine::Impl::Forward(const DeformLayout& layout, const float* grid, const float* mlp, int n,
-                                   int sh_coeffs, float time, const GaussianTensors& canonical,
-                                   const GaussianTensors& deformed) {
-  cached = false;
-  ATEX_RETURN_IF_ERROR(CheckCommon("DeformEngine::Forward", layout, grid, mlp, n, sh_coeffs, time, canonical));
+namespace {
+// Every requested deformed tensor has its canonical input and does not alias it.
+Status CheckForwardTensors(const GaussianTensors& canonical, const GaussianTensors& deformed, int n, int sh_coeffs) {
   for (int h = 0; h < kNumDeformHeads; ++h) {
     const float* in = HeadTensor(canonical, h);
     const float* out = HeadTensor(deformed, h);
@@ -130,6 +128,16 @@ Status DeformEngine::Impl::Forward(const DeformLayout& layout, const float* grid
                        " aliases the canonical tensor");
     }
   }
+  return Status::Ok();
+}
+}  // namespace
+
+Status DeformEngine::Impl::Forward(const DeformLayout& layout, const float* grid, const float* mlp, int n,
+                                   int sh_coeffs, float time, const GaussianTensors& canonical,
+                                   const GaussianTensors& deformed) {
+  cached = false;
+  ATEX_RETURN_IF_ERROR(CheckCommon("DeformEngine::Forward", layout, grid, mlp, n, sh_coeffs, time, canonical));
+  ATEX_RETURN_IF_ERROR(CheckForwardTensors(canonical, deformed, n, sh_coeffs));
   const DeformationConfig& config = layout.config;
   const int width = config.mlp_width;
   const int feature_dim = config.grid.feature_dim();

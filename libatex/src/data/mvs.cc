@@ -186,34 +186,41 @@ struct SweepScratch {
   }
 };
 
-// Step 3 and 4 for reference r: its depth map [H][W] (0 = none).
-std::vector<float> SweepReference(const std::vector<Frame>& frames, int r, const std::vector<int>& nbrs,
-                                  const MvsOptions& o, int D) {
-  const Frame& ref = frames[r];
-  const int w = ref.width, h = ref.height, rad = o.window_radius;
+// Mean and standard deviation of reference r's grey values over each pixel's window.
+struct WindowStats {
+  std::vector<float> mean, std;  // [P] each
+};
+WindowStats ReferenceWindowStats(const Frame& ref, int rad) {
+  const int w = ref.width, h = ref.height;
+  const size_t P = ref.pixels();
+  const float window = float((2 * rad + 1) * (2 * rad + 1));
+  WindowStats stats{std::vector<float>(P), std::vector<float>(P)};
+  std::vector<float> sq(P), s1(P), s2(P), t0(P), t1(P), t2(P), t3(P), z(P, 0.0f), z2(P);
+  for (size_t p = 0; p < P; ++p) sq[p] = ref.grey[p] * ref.grey[p];
+  const float* in[4] = {ref.grey.data(), sq.data(), z.data(), z.data()};
+  float* out[4] = {s1.data(), s2.data(), z2.data(), z2.data()};
+  float* tmp[4] = {t0.data(), t1.data(), t2.data(), t3.data()};
+  BoxSums4(in, out, tmp, w, h, rad);
+  for (size_t p = 0; p < P; ++p) {
+    stats.mean[p] = s1[p] / window;
+    stats.std[p] = std::sqrt(std::max(0.0f, s2[p] / window - stats.mean[p] * stats.mean[p]));
+  }
+  return stats;
+}
+
+// Homographies of the plane sweep: neighbour pixel q = d·a[p] + b (homogeneous), with
+// a = K_n R_rel ray_r(p) and b = K_n t_rel, for each neighbour j of reference `ref`.
+struct SweepHomographies {
+  std::vector<std::vector<float>> a;     // [K][P][3]
+  std::vector<std::array<double, 3>> b;  // [K]
+};
+SweepHomographies NeighbourHomographies(const std::vector<Frame>& frames, const Frame& ref,
+                                        const std::vector<int>& nbrs) {
+  const int w = ref.width, h = ref.height;
   const size_t P = ref.pixels();
   const int K = static_cast<int>(nbrs.size());
-  const float window = float((2 * rad + 1) * (2 * rad + 1));
-  std::vector<float> depth(P, 0.0f);
-  if (K < o.best_neighbors) return depth;
-
-  // Reference window statistics.
-  std::vector<float> ref_mean(P), ref_std(P);
-  {
-    std::vector<float> sq(P), s1(P), s2(P), t0(P), t1(P), t2(P), t3(P), z(P, 0.0f), z2(P);
-    for (size_t p = 0; p < P; ++p) sq[p] = ref.grey[p] * ref.grey[p];
-    const float* in[4] = {ref.grey.data(), sq.data(), z.data(), z.data()};
-    float* out[4] = {s1.data(), s2.data(), z2.data(), z2.data()};
-    float* tmp[4] = {t0.data(), t1.data(), t2.data(), t3.data()};
-    BoxSums4(in, out, tmp, w, h, rad);
-    for (size_t p = 0; p < P; ++p) {
-      ref_mean[p] = s1[p] / window;
-      ref_std[p] = std::sqrt(std::max(0.0f, s2[p] / window - ref_mean[p] * ref_mean[p]));
-    }
-  }
-  // Homographies: neighbour pixel q = d·a[p] + b (homogeneous), a = K_n R_rel ray_r(p), b = K_n t_rel.
-  std::vector<std::vector<float>> a(K, std::vector<float>(3 * P));
-  std::vector<std::array<double, 3>> b(K);
+  SweepHomographies hg{std::vector<std::vector<float>>(K, std::vector<float>(3 * P)),
+                       std::vector<std::array<double, 3>>(K)};
   const auto& mr = ref.camera.world_to_camera;
   for (int j = 0; j < K; ++j) {
     const Camera& cn = frames[nbrs[j]].camera;
@@ -229,22 +236,79 @@ std::vector<float> SweepReference(const std::vector<Frame>& frames, int r, const
       trel[i] = mn[4 * i + 3];
       for (int k = 0; k < 3; ++k) trel[i] -= rel[i][k] * mr[4 * k + 3];
     }
-    b[j] = {cn.fx * trel[0] + cn.cx * trel[2], cn.fy * trel[1] + cn.cy * trel[2], trel[2]};
+    hg.b[j] = {cn.fx * trel[0] + cn.cx * trel[2], cn.fy * trel[1] + cn.cy * trel[2], trel[2]};
     for (int y = 0; y < h; ++y) {
       for (int x = 0; x < w; ++x) {
         const double ray[3] = {(x + 0.5 - ref.camera.cx) / ref.camera.fx, (y + 0.5 - ref.camera.cy) / ref.camera.fy, 1};
         double c[3];
         for (int i = 0; i < 3; ++i) c[i] = rel[i][0] * ray[0] + rel[i][1] * ray[1] + rel[i][2] * ray[2];
-        float* dst = &a[j][3 * (size_t(y) * w + x)];
+        float* dst = &hg.a[j][3 * (size_t(y) * w + x)];
         dst[0] = float(cn.fx * c[0] + cn.cx * c[2]);
         dst[1] = float(cn.fy * c[1] + cn.cy * c[2]);
         dst[2] = float(c[2]);
       }
     }
   }
+  return hg;
+}
+
+// The ZNCC of reference `ref` against neighbour `nb` warped onto the plane at depth d, per
+// pixel, into score [P] (kInvalidScore where the window is not fully seen or is flat).
+void ScoreNeighbourAtDepth(const Frame& ref, const Frame& nb, const WindowStats& stats, const float* aj,
+                           const std::array<double, 3>& bj, float d, int rad, SweepScratch& s, float* score) {
+  const int w = ref.width, h = ref.height;
+  const size_t P = ref.pixels();
+  const float window = float((2 * rad + 1) * (2 * rad + 1));
+  const float b0 = float(bj[0]), b1 = float(bj[1]), b2 = float(bj[2]);
+  for (size_t p = 0; p < P; ++p) {
+    const float qz = d * aj[3 * p + 2] + b2;
+    float value = 0, ok = 0;
+    if (qz > 1e-6f) {
+      const float gx = (d * aj[3 * p] + b0) / qz - 0.5f, gy = (d * aj[3 * p + 1] + b1) / qz - 0.5f;
+      if (gx >= 0 && gy >= 0 && gx <= float(nb.width - 1) && gy <= float(nb.height - 1)) {
+        const int x0 = std::min(int(gx), nb.width - 2 < 0 ? 0 : nb.width - 2);
+        const int y0 = std::min(int(gy), nb.height - 2 < 0 ? 0 : nb.height - 2);
+        const float fx = gx - x0, fy = gy - y0;
+        const float* g = &nb.grey[size_t(y0) * nb.width + x0];
+        value = (1 - fy) * ((1 - fx) * g[0] + fx * g[1]) + fy * ((1 - fx) * g[nb.width] + fx * g[nb.width + 1]);
+        ok = 1;
+      }
+    }
+    s.warped[p] = value;
+    s.valid[p] = ok;
+    s.product[p] = value * ref.grey[p];
+    s.squared[p] = value * value;
+  }
+  const float* in[4] = {s.warped.data(), s.valid.data(), s.product.data(), s.squared.data()};
+  float* out[4] = {s.sum_j.data(), s.sum_valid.data(), s.sum_ij.data(), s.sum_jj.data()};
+  float* tmp[4] = {s.tmp[0].data(), s.tmp[1].data(), s.tmp[2].data(), s.tmp[3].data()};
+  BoxSums4(in, out, tmp, w, h, rad);
+  for (size_t p = 0; p < P; ++p) {
+    score[p] = kInvalidScore;
+    if (s.sum_valid[p] < window - 0.5f || stats.std[p] <= 0) continue;
+    const float mj = s.sum_j[p] / window;
+    const float var_j = s.sum_jj[p] / window - mj * mj;
+    if (!(var_j > 1e-8f)) continue;
+    const float cov = s.sum_ij[p] / window - stats.mean[p] * mj;
+    score[p] = std::clamp(cov / (stats.std[p] * std::sqrt(var_j)), -1.0f, 1.0f);
+  }
+}
+
+// Step 3 and 4 for reference r: its depth map [H][W] (0 = none).
+std::vector<float> SweepReference(const std::vector<Frame>& frames, int r, const std::vector<int>& nbrs,
+                                  const MvsOptions& o, int D) {
+  const Frame& ref = frames[r];
+  const size_t P = ref.pixels();
+  const int K = static_cast<int>(nbrs.size());
+  std::vector<float> depth(P, 0.0f);
+  if (K < o.best_neighbors) return depth;
+
+  const WindowStats stats = ReferenceWindowStats(ref, o.window_radius);
+  const SweepHomographies hg = NeighbourHomographies(frames, ref, nbrs);
   const double inv_near = 1.0 / o.near_depth, inv_far = 1.0 / o.far_depth;
   auto plane_depth = [&](double k) { return 1.0 / (inv_near + (inv_far - inv_near) * k / (D - 1)); };
 
+  // The cost volume [D][P]: per plane, the mean of the best neighbours' ZNCC.
   std::vector<float> volume(size_t(D) * P);
 #pragma omp parallel
   {
@@ -254,42 +318,8 @@ std::vector<float> SweepReference(const std::vector<Frame>& frames, int r, const
     for (int k = 0; k < D; ++k) {
       const float d = float(plane_depth(k));
       for (int j = 0; j < K; ++j) {
-        const Frame& nb = frames[nbrs[j]];
-        const float* aj = a[j].data();
-        const float b0 = float(b[j][0]), b1 = float(b[j][1]), b2 = float(b[j][2]);
-        for (size_t p = 0; p < P; ++p) {
-          const float qz = d * aj[3 * p + 2] + b2;
-          float value = 0, ok = 0;
-          if (qz > 1e-6f) {
-            const float gx = (d * aj[3 * p] + b0) / qz - 0.5f, gy = (d * aj[3 * p + 1] + b1) / qz - 0.5f;
-            if (gx >= 0 && gy >= 0 && gx <= float(nb.width - 1) && gy <= float(nb.height - 1)) {
-              const int x0 = std::min(int(gx), nb.width - 2 < 0 ? 0 : nb.width - 2);
-              const int y0 = std::min(int(gy), nb.height - 2 < 0 ? 0 : nb.height - 2);
-              const float fx = gx - x0, fy = gy - y0;
-              const float* g = &nb.grey[size_t(y0) * nb.width + x0];
-              value = (1 - fy) * ((1 - fx) * g[0] + fx * g[1]) + fy * ((1 - fx) * g[nb.width] + fx * g[nb.width + 1]);
-              ok = 1;
-            }
-          }
-          s.warped[p] = value;
-          s.valid[p] = ok;
-          s.product[p] = value * ref.grey[p];
-          s.squared[p] = value * value;
-        }
-        const float* in[4] = {s.warped.data(), s.valid.data(), s.product.data(), s.squared.data()};
-        float* out[4] = {s.sum_j.data(), s.sum_valid.data(), s.sum_ij.data(), s.sum_jj.data()};
-        float* tmp[4] = {s.tmp[0].data(), s.tmp[1].data(), s.tmp[2].data(), s.tmp[3].data()};
-        BoxSums4(in, out, tmp, w, h, rad);
-        float* score = &s.scores[size_t(j) * P];
-        for (size_t p = 0; p < P; ++p) {
-          score[p] = kInvalidScore;
-          if (s.sum_valid[p] < window - 0.5f || ref_std[p] <= 0) continue;
-          const float mj = s.sum_j[p] / window;
-          const float var_j = s.sum_jj[p] / window - mj * mj;
-          if (!(var_j > 1e-8f)) continue;
-          const float cov = s.sum_ij[p] / window - ref_mean[p] * mj;
-          score[p] = std::clamp(cov / (ref_std[p] * std::sqrt(var_j)), -1.0f, 1.0f);
-        }
+        ScoreNeighbourAtDepth(ref, frames[nbrs[j]], stats, hg.a[j].data(), hg.b[j], d, o.window_radius, s,
+                              &s.scores[size_t(j) * P]);
       }
       float* plane = &volume[size_t(k) * P];
       for (size_t p = 0; p < P; ++p) {
@@ -306,7 +336,7 @@ std::vector<float> SweepReference(const std::vector<Frame>& frames, int r, const
 #pragma omp parallel for schedule(static)
   for (long long pl = 0; pl < static_cast<long long>(P); ++pl) {
     const size_t p = static_cast<size_t>(pl);
-    if (ref_std[p] < o.min_texture) continue;
+    if (stats.std[p] < o.min_texture) continue;
     int best_k = -1;
     float best = -2;
     for (int k = 0; k < D; ++k) {

@@ -34,16 +34,11 @@ struct Timestep {
   std::vector<hull::CameraImages> cams;  // masked training views of this timestep
 };
 
-}  // namespace
-
-StatusOr<Gaussians> TransientSeeds(const Dataset& dataset, const InitOptions& init, const TransientSeedOptions& options,
-                                   TransientSeedReport* report) {
-  ATEX_RETURN_IF_ERROR(ValidateOptions(init, options));
-  TransientSeedReport local;
-  TransientSeedReport& rep = report ? *report : local;
-  rep = TransientSeedReport();
-
-  // Masked training views by timestep.
+// The masked training views of `dataset` by timestep, those with at least init.min_views of
+// them; at least two such timesteps, and the median interval between them (rep.timesteps,
+// rep.frame_interval).
+StatusOr<std::vector<Timestep>> MaskedTimesteps(const Dataset& dataset, const InitOptions& init,
+                                                TransientSeedReport& rep) {
   std::map<int, Timestep> by_step;
   for (const View& v : dataset.train_views()) {
     if (v.timestep < 0) {
@@ -75,6 +70,49 @@ StatusOr<Gaussians> TransientSeeds(const Dataset& dataset, const InitOptions& in
   if (!(rep.frame_interval > 0)) {
     return MakeError(StatusCode::kInvalidArgument, dataset.name(), ": timesteps share one time");
   }
+  return steps;
+}
+
+// The seeds as Gaussians: positions[s] and colours[s] [n_s][3] of timestep s, each seed
+// present around its timestep's time (a time window of options.window_frames frames).
+Gaussians SeedGaussians(const std::vector<Timestep>& steps, const std::vector<std::vector<float>>& positions,
+                        const std::vector<std::vector<float>>& colours, size_t made, const InitOptions& init,
+                        const TransientSeedOptions& options, const TransientSeedReport& rep) {
+  Gaussians g;
+  g.sh_degree = init.sh_degree;
+  g.time_windows.assign(2, 0.0f);  // present, so that Resize keeps it
+  g.Resize(made);
+  const float logit = float(std::log(init.initial_opacity / (1.0 - init.initial_opacity)));
+  const float inverse_width = float(1.0 / (options.window_frames * rep.frame_interval));
+  const int coeffs = g.sh_coeffs();
+  size_t row = 0;
+  for (size_t s = 0; s < steps.size(); ++s) {
+    const std::vector<float> log_scales = NearestNeighborLogScales(positions[s], init.knn_neighbors);
+    for (size_t p = 0; p < positions[s].size() / 3; ++p, ++row) {
+      std::copy_n(&positions[s][3 * p], 3, &g.positions[3 * row]);
+      for (int a = 0; a < 3; ++a) {
+        g.log_scales[3 * row + a] = log_scales[p];
+        g.sh[row * coeffs * 3 + a] = float((colours[s][3 * p + a] - 0.5) / hull::kShC0);
+      }
+      g.rotations[4 * row] = 1.0f;
+      g.opacity_logits[row] = logit;
+      g.time_windows[2 * row] = float(steps[s].time);
+      g.time_windows[2 * row + 1] = inverse_width;
+    }
+  }
+  return g;
+}
+
+}  // namespace
+
+StatusOr<Gaussians> TransientSeeds(const Dataset& dataset, const InitOptions& init, const TransientSeedOptions& options,
+                                   TransientSeedReport* report) {
+  ATEX_RETURN_IF_ERROR(ValidateOptions(init, options));
+  TransientSeedReport local;
+  TransientSeedReport& rep = report ? *report : local;
+  rep = TransientSeedReport();
+
+  ATEX_ASSIGN_OR_RETURN(std::vector<Timestep> steps, MaskedTimesteps(dataset, init, rep));
 
   // The union of the per-timestep foreground boxes (coarse carves in the cameras' scene box).
   const hull::SceneFrame scene = hull::EstimateScene(steps[0].cams, dataset);
@@ -133,28 +171,7 @@ StatusOr<Gaussians> TransientSeeds(const Dataset& dataset, const InitOptions& in
     ++made;
   }
 
-  Gaussians g;
-  g.sh_degree = init.sh_degree;
-  g.time_windows.assign(2, 0.0f);  // present, so that Resize keeps it
-  g.Resize(made);
-  const float logit = float(std::log(init.initial_opacity / (1.0 - init.initial_opacity)));
-  const float inverse_width = float(1.0 / (options.window_frames * rep.frame_interval));
-  const int coeffs = g.sh_coeffs();
-  size_t row = 0;
-  for (size_t s = 0; s < steps.size(); ++s) {
-    const std::vector<float> log_scales = NearestNeighborLogScales(positions[s], init.knn_neighbors);
-    for (size_t p = 0; p < positions[s].size() / 3; ++p, ++row) {
-      std::copy_n(&positions[s][3 * p], 3, &g.positions[3 * row]);
-      for (int a = 0; a < 3; ++a) {
-        g.log_scales[3 * row + a] = log_scales[p];
-        g.sh[row * coeffs * 3 + a] = float((colours[s][3 * p + a] - 0.5) / hull::kShC0);
-      }
-      g.rotations[4 * row] = 1.0f;
-      g.opacity_logits[row] = logit;
-      g.time_windows[2 * row] = float(steps[s].time);
-      g.time_windows[2 * row + 1] = inverse_width;
-    }
-  }
+  Gaussians g = SeedGaussians(steps, positions, colours, made, init, options, rep);
   rep.seeds = made;
   return g;
 }
