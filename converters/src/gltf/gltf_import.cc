@@ -224,11 +224,19 @@ StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, cons
   const json* atex = FindPath(doc, {"extras", "atex"});
   Asset asset;
   if (atex == nullptr) {
-    // Someone else's file: base attributes of every splat primitive, transforms baked in.
+    // Someone else's file: base attributes of every splat primitive, transforms baked in, colours
+    // in our colour space.
+    int linear_primitives = 0;
     for (size_t i = 0; i < splats.size(); ++i) {
       const auto& sp = splats[i];
       auto g = ReadPrimitiveBase(model, doc, sp, options, false);
       if (!g.ok()) return g.status().WithContext(StrCat("meshes[", sp.mesh, "].primitives[", sp.primitive, "]"));
+      const json& primitive = doc.at("meshes").at(sp.mesh).at("primitives").at(sp.primitive);
+      const json* space = FindPath(primitive, {"extensions", gltf::kKhrGaussianSplatting, "colorSpace"});
+      if (space != nullptr && *space == "lin_rec709_display") {
+        gltf::LinearToDisplayColour(*g);
+        linear_primitives++;
+      }
       ATEX_RETURN_IF_ERROR(BakeTransform(sp.world, *g));
       if (asset.gaussians.size() + g->size() > options.max_gaussians) {
         return MakeError(StatusCode::kLimitExceeded, "more than ", options.max_gaussians, " Gaussians");
@@ -239,6 +247,10 @@ StatusOr<Asset> ModelToAsset(const tinygltf::Model& model, const json& doc, cons
       }
     }
     asset.metadata = ForeignMetadata(asset.gaussians);
+    if (linear_primitives > 0) {
+      asset.metadata.extra["colour_space"] = StrCat(linear_primitives, " of ", splats.size(),
+                                                    " primitives lin_rec709_display, converted to srgb_rec709_display");
+    }
     ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
     return asset;
   }

@@ -157,6 +157,22 @@ StatusOr<Gaussians> ReadBase(const tinygltf::Model& model, const tinygltf::Primi
   return g;
 }
 
+void LinearToDisplayColour(Gaussians& g) {
+  constexpr double kC0 = 0.28209479177387814;
+  const int k = g.sh_coeffs();
+  for (size_t i = 0; i < g.size(); ++i) {
+    float* sh = &g.sh[i * size_t(k) * 3];  // [k][3]
+    for (int c = 0; c < 3; ++c) {
+      const double linear = std::clamp(0.5 + kC0 * double(sh[c]), 0.0, 1.0);
+      const double display = linear <= 0.0031308 ? 12.92 * linear : 1.055 * std::pow(linear, 1 / 2.4) - 0.055;
+      // d display / d linear: 12.92 on the straight segment, 1.055/2.4 x^(1/2.4 - 1) above it.
+      const double slope = linear <= 0.0031308 ? 12.92 : std::min(12.92, 1.055 / 2.4 * std::pow(linear, 1 / 2.4 - 1));
+      sh[c] = float((display - 0.5) / kC0);
+      for (int j = 1; j < k; ++j) sh[j * 3 + c] = float(double(sh[j * 3 + c]) * slope);
+    }
+  }
+}
+
 }  // namespace atex::gltf
 
 #endif  // ATEX_HAVE_TINYGLTF

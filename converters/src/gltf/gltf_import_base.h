@@ -34,5 +34,13 @@ Status ReadAttribute(const tinygltf::Model& model, const tinygltf::Primitive& pr
 StatusOr<Gaussians> ReadBase(const tinygltf::Model& model, const tinygltf::Primitive& primitive,
                              const GltfImportOptions& options, bool ours);
 
+// colorSpace "lin_rec709_display" of KHR_gaussian_splatting: the SH give linear colour, where ours
+// (3DGS's convention, "srgb_rec709_display") give display colour, sRGB-encoded. Converts `g` in
+// place: the diffuse colour 0.5 + C0·SH_0 exactly (clamped to [0, 1], then sRGB-encoded), the
+// higher degrees scaled per channel by the sRGB curve's slope at that colour (first order: the
+// view-dependent part is a small deviation around it). Blending in linear light, which such a
+// file's author may have meant, is not reproduced: we blend display colours as 3DGS does.
+void LinearToDisplayColour(Gaussians& g);
+
 }  // namespace atex::gltf
 #endif

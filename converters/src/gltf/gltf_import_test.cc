@@ -210,7 +210,8 @@ TEST(GltfImport, MeshoptLossyStaysWithinTheFilterPrecision) {
 
 // A hand-written KHR_gaussian_splatting file (the layout of the extension's README
 // example): two splats, SH degree 1, a node with translation, rotation and uniform scale.
-std::vector<uint8_t> ForeignGlb(const std::vector<float>& node_rotation_xyzw) {
+std::vector<uint8_t> ForeignGlb(const std::vector<float>& node_rotation_xyzw,
+                                const char* colour_space = "srgb_rec709_display") {
   std::vector<float> pos = {1, 0, 0, 0, 2, 0};
   std::vector<float> rot = {0, 0, 0, 1, 0, 0.70710678f, 0, 0.70710678f};
   std::vector<float> scale = {0.1f, 0.2f, 0.3f, 0.5f, 0.5f, 0.5f};
@@ -245,7 +246,7 @@ std::vector<uint8_t> ForeignGlb(const std::vector<float>& node_rotation_xyzw) {
           {{{"mode", 0},
             {"attributes", attributes},
             {"extensions",
-             {{"KHR_gaussian_splatting", {{"kernel", "ellipse"}, {"colorSpace", "lin_rec709_display"}}}}}}}}}}},
+             {{"KHR_gaussian_splatting", {{"kernel", "ellipse"}, {"colorSpace", colour_space}}}}}}}}}}},
       {"nodes",
        {{{"children", {1}}, {"translation", {10, 0, 0}}},
         {{"mesh", 0}, {"rotation", node_rotation_xyzw}, {"scale", {2, 2, 2}}}}},
@@ -292,6 +293,38 @@ TEST(GltfImport, ForeignFileBakesTheNodeTransform) {
     EXPECT_NEAR(after, before, 1e-6) << "channel " << ch;
   }
   EXPECT_EQ(g.sh[0], 0.1f);  // DC is rotation invariant
+}
+
+// colorSpace lin_rec709_display: the diffuse colour is sRGB-encoded into ours (3DGS's display
+// colour), higher SH degrees scaled by the curve's slope there; srgb_rec709_display is kept as is.
+TEST(GltfImport, LinearColourSpaceBecomesDisplayColour) {
+  const std::vector<float> identity = {0, 0, 0, 1};
+  auto display = DecodeGltf(ForeignGlb(identity).data(), ForeignGlb(identity).size());
+  const auto linear_glb = ForeignGlb(identity, "lin_rec709_display");
+  auto linear = DecodeGltf(linear_glb.data(), linear_glb.size());
+  ASSERT_TRUE(display.ok()) << display.status().ToString();
+  ASSERT_TRUE(linear.ok()) << linear.status().ToString();
+  EXPECT_FALSE(display->metadata.extra.contains("colour_space"));
+  EXPECT_TRUE(linear->metadata.extra.contains("colour_space"));
+  const double c0 = 0.28209479177387814;
+  const Gaussians& g = linear->gaussians;
+  const Gaussians& d = display->gaussians;
+  const int k = g.sh_coeffs();
+  ASSERT_EQ(k, 4);
+  for (size_t i = 0; i < 2; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      const double lin = std::clamp(0.5 + c0 * d.sh[i * k * 3 + c], 0.0, 1.0);  // the file's values, unchanged
+      const double srgb = lin <= 0.0031308 ? 12.92 * lin : 1.055 * std::pow(lin, 1 / 2.4) - 0.055;
+      EXPECT_NEAR(0.5 + c0 * g.sh[i * k * 3 + c], srgb, 1e-6) << i << " " << c;
+      EXPECT_GT(srgb, lin) << "mid-grey linear values are brighter once encoded";
+      const double slope = 1.055 / 2.4 * std::pow(lin, 1 / 2.4 - 1);
+      for (int j = 1; j < k; ++j) {
+        EXPECT_NEAR(g.sh[(i * k + j) * 3 + c], d.sh[(i * k + j) * 3 + c] * slope, 1e-6) << i << " " << j << " " << c;
+      }
+    }
+  }
+  EXPECT_EQ(g.positions, d.positions);
+  EXPECT_EQ(g.opacity_logits, d.opacity_logits);
 }
 
 TEST(GltfImport, RealPlyGaussiansRoundTripBitExact) {
