@@ -6,6 +6,7 @@
 #include <cstring>
 #include <memory>
 #include <new>
+#include <thread>
 
 #include "container/byte_io.h"
 
@@ -61,14 +62,29 @@ struct DCtxDeleter {
   void operator()(ZSTD_DCtx* d) const { ZSTD_freeDCtx(d); }
 };
 
-StatusOr<std::vector<uint8_t>> ZstdCompress(const uint8_t* data, size_t size, int level) {
+}  // namespace
+
+int ZstdWorkersFor(size_t size, int workers) {
+  if (size < kParallelZstdBytes) return 0;
+  if (workers > 0) return workers;
+  const unsigned threads = std::thread::hardware_concurrency();
+  return static_cast<int>(std::clamp(threads, 1u, 16u));
+}
+
+StatusOr<std::vector<uint8_t>> ZstdCompress(const uint8_t* data, size_t size, int level, int workers) {
   std::unique_ptr<ZSTD_CCtx, CCtxDeleter> cctx(ZSTD_createCCtx());
   if (!cctx) return MakeError(StatusCode::kInternal, "ZSTD_createCCtx failed");
-  // Pinned parameters: the output depends only on the level and the library version.
+  // Pinned parameters: the output depends only on the level, the library version and whether
+  // the chunk is at least kParallelZstdBytes (then zstd's workers cut it into jobs whose size
+  // follows from the level alone, so any worker count gives the same bytes; codecs_test checks).
   ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_compressionLevel, level);
   ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_contentSizeFlag, 1);
   ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_checksumFlag, 0);  // the TOC's CRC32C covers the bytes
   ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_dictIDFlag, 0);
+  if (const int n = ZstdWorkersFor(size, workers); n > 0) {
+    // A libzstd built without threads refuses: it then compresses in this thread (other bytes).
+    ZSTD_CCtx_setParameter(cctx.get(), ZSTD_c_nbWorkers, n);
+  }
   // An uninitialised bound-sized buffer, then an exact-size copy: cheaper than
   // zero-filling a vector of the bound.
   const size_t bound = ZSTD_compressBound(size);
@@ -79,6 +95,8 @@ StatusOr<std::vector<uint8_t>> ZstdCompress(const uint8_t* data, size_t size, in
   }
   return std::vector<uint8_t>(buffer.data(), buffer.data() + written);
 }
+
+namespace {
 
 StatusOr<ChunkBytes> ZstdDecompress(const uint8_t* stored, size_t stored_size, uint64_t raw_size) {
   std::unique_ptr<ZSTD_DCtx, DCtxDeleter> dctx(ZSTD_createDCtx());

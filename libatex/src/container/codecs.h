@@ -52,6 +52,20 @@ class ChunkBytes {
 // kUnsupportedCodec for an unknown codec number). Draco's parameters included.
 Status CheckCodecParams(const CodecParams& params, uint64_t raw_size);
 
+// Chunks of at least this many bytes (after the codec's transform) are compressed by zstd's
+// worker threads: one large stream (SH, texels of a big model) is otherwise the whole encode's
+// critical path while the other chunks are done.
+inline constexpr size_t kParallelZstdBytes = size_t{16} << 20;
+
+// The zstd worker count for `size` bytes: 0 (the calling thread) below kParallelZstdBytes, else
+// `workers` if positive, else one per hardware thread, at most 16.
+int ZstdWorkersFor(size_t size, int workers = 0);
+
+// zstd frame of data[0, size) at `level`, workers as ZstdWorkersFor says. The bytes do not depend
+// on the worker count (zstd cuts multithreaded frames into jobs sized by the level alone), so a
+// file is the same on every machine; kInternal if zstd fails.
+StatusOr<std::vector<uint8_t>> ZstdCompress(const uint8_t* data, size_t size, int level, int workers = 0);
+
 // Encodes raw chunk content with codec 0-3. kInvalidArgument for codec 4.
 StatusOr<std::vector<uint8_t>> EncodeChunk(const uint8_t* raw, size_t raw_size, const CodecParams& params,
                                            int zstd_level);

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <zstd.h>
 
+#include <cstring>
 #include <numeric>
 #include <random>
 
@@ -112,6 +113,33 @@ TEST(Codecs, ConcatenatedFramesAreOneStream) {
   std::vector<uint8_t> expected = a;
   expected.insert(expected.end(), b.begin(), b.end());
   EXPECT_EQ(back->ToVector(), expected);
+}
+
+// Large chunks go through zstd's worker threads; the bytes must not depend on how many, or a
+// file (and a fit's byte counts) would differ between machines.
+TEST(Codecs, LargeChunksAreTheSameForAnyWorkerCount) {
+  EXPECT_EQ(ZstdWorkersFor(kParallelZstdBytes - 1, 8), 0);
+  EXPECT_EQ(ZstdWorkersFor(kParallelZstdBytes, 3), 3);
+  EXPECT_GE(ZstdWorkersFor(kParallelZstdBytes), 1);
+  // Compressible content of several zstd jobs: smooth runs with a little noise.
+  std::vector<uint8_t> raw(kParallelZstdBytes + (size_t{5} << 20) + 123);
+  uint32_t state = 24;
+  for (size_t i = 0; i < raw.size(); ++i) {
+    state = state * 1664525u + 1013904223u;
+    raw[i] = static_cast<uint8_t>((i / 4096) % 7 * 30 + (state >> 29));
+  }
+  auto one = ZstdCompress(raw.data(), raw.size(), 3, 1);
+  ASSERT_TRUE(one.ok()) << one.status().ToString();
+  EXPECT_LT(one->size(), raw.size() * 3 / 4) << "the test data must compress";
+  for (int workers : {2, 3}) {
+    auto more = ZstdCompress(raw.data(), raw.size(), 3, workers);
+    ASSERT_TRUE(more.ok()) << more.status().ToString();
+    EXPECT_TRUE(*more == *one) << workers << " workers wrote other bytes";
+  }
+  auto back = DecodeChunk(one->data(), one->size(), raw.size(), {Codec::kZstd, 0, 0, 0});
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ASSERT_EQ(back->size(), raw.size());
+  EXPECT_EQ(std::memcmp(back->data(), raw.data(), raw.size()), 0);
 }
 
 TEST(Codecs, DecodeRefusesWrongSizesAndDamage) {
