@@ -146,10 +146,10 @@ try {
       if (scene.truth) {
         stats.psnrVsAtexTextured = (await page.evaluate(compareInPage, `/data/${scene.atex}`)).psnr;
         stats.psnrVsTruth = (await page.evaluate(compareInPage, `/data/${scene.truth}`)).psnr;
-      if (scene.clamped) {
-        // Diagnostic: our render with each base colour clamped to [0, 1] (web_fixture_player.h).
-        stats.psnrVsClamped = (await page.evaluate(compareInPage, `/data/${scene.clamped}`)).psnr;
-      }
+        if (scene.clamped) {
+          // Diagnostic: our render with each base colour clamped to [0, 1] (web_fixture_player.h).
+          stats.psnrVsClamped = (await page.evaluate(compareInPage, `/data/${scene.clamped}`)).psnr;
+        }
       }
       const seconds = (Date.now() - t0) / 1000;
       console.log(`${label}: ${JSON.stringify({ ...info, ...stats, seconds })}`);
