@@ -25,7 +25,7 @@
 # picture on the CPU machine.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
-case ${1:-} in -h|--help|'') sed -n 2,22p "$0"; exit 0 ;; esac
+case ${1:-} in -h|--help|'') sed -n '2,/^set -e/{/^#/p}' "$0"; exit 0 ;; esac
 model=$(realpath "$1")
 data=$(realpath "$2")
 views=${3:-0}
