@@ -9,6 +9,10 @@
 //             reaches zero at its cut (A = 1 at the quad's edge);
 //   extent    its quad ends at 2√2 σ (where 3DGS's Gaussian is still e^-4 = 0.018), where 3DGS
 //             keeps every sample with opacity × Gaussian >= 1/255 (out to 3.33 σ when opaque).
+//   near      it culls only splats behind the camera and clamps the depth of those in front of its
+//             near clip onto it, so splats between the camera and its near plane are drawn, where
+//             3DGS culls every splat whose centre is nearer than 0.2 (its near plane): a real
+//             capture's held-out cameras stand among such untrained splats (Panoptic: a dark haze)
 // The hooks below undo each (options choose which, for measuring them one by one):
 //   dilation  modifySplatRotationScale adds, in 3-D, the covariance whose projection is the
 //             missing blur: s² along the camera's right and up axes projects (the projection is
@@ -19,6 +23,8 @@
 //   falloff   modifySplatColor (fragment) recovers the opacity from the engine's alpha (which it
 //             documents as falloff × opacity), then applies 3DGS's exp(-½ d²/σ²) (in the quad's
 //             coordinate, exp(-4 k² A)), min(0.99, ·) and the 1/255 cut.
+//   near      modifySplatColor (vertex stage) sets the opacity of a splat whose centre is nearer
+//             than 0.2 along the camera's axis to 0, which the engine's alpha clip then drops.
 // Limits: GLSL (WebGL2) only; unified splat rendering (the engine's default), where the hooks see
 // world-space splats; a camera drawing the whole canvas (the engine's uScreenSize gives the pixel
 // focal length); perspective cameras.
@@ -31,17 +37,22 @@ const ENGINE_BLUR_HALF_PX2 = 0.3;  // added to the 2-D covariance in half-pixel 
 const TRAINING_BLUR_PX2 = 0.3;     // 3DGS's low-pass (atex: kCov2dBlur)
 const ALPHA_CUT = 1 / 255;         // 3DGS's sample cut (atex: kMinSplatAlpha)
 const MAX_ALPHA = 0.99;            // 3DGS's alpha clamp (atex: kMaxSplatAlpha)
+const NEAR_PLANE = 0.2;            // 3DGS's near-plane cull, scene units (atex: RenderSettings::near_plane)
 
 // Vertex-stage chunk. `extraHalfPx2`: the blur to add in the engine's half-pixel units (0: none);
-// `k2`: the square of the splat's enlargement (1: none).
-function vertexChunk(extraHalfPx2, k2) {
+// `k2`: the square of the splat's enlargement (1: none); `near`: the cull distance (0: none).
+function vertexChunk(extraHalfPx2, k2, near) {
   return /* glsl */ `
 uniform mat4 matrix_viewInverse;     // the camera's pose in the world (engine-provided)
 uniform mat4 matrix_viewProjection;  // projection × view (engine-provided)
 uniform vec4 uScreenSize;            // width, height, 1/width, 1/height (engine-provided)
 
 void modifySplatCenter(inout vec3 center) {}
-void modifySplatColor(vec3 center, inout vec4 color) {}
+void modifySplatColor(vec3 center, inout vec4 color) {
+  // The camera looks along -z of its pose: the depth of the centre is along -matrix_viewInverse[2].
+  float depth = dot(matrix_viewInverse[3].xyz - center, matrix_viewInverse[2].xyz);
+  if (depth < ${near.toFixed(9)}) color.a = 0.0;
+}
 
 // One Jacobi rotation of the symmetric a, zeroing a[p][q]; v collects the rotations.
 void atexJacobiRotate(inout mat3 a, inout mat3 v, int p, int q) {
@@ -134,8 +145,9 @@ void modifySplatColor(vec2 gaussianUV, inout vec4 color) {
 //   dilation  3DGS's 0.3 px² screen-space blur instead of the engine's 0.075 px²
 //   falloff   3DGS's Gaussian instead of the engine's lowered one
 //   extent    the quad reaches 3DGS's 1/255 cut (needs falloff)
+//   near      splats nearer than 3DGS's 0.2 near plane are culled
 // Returns the settings applied.
-export function useTrainingKernel(app, { dilation = true, falloff = true, extent = true } = {}) {
+export function useTrainingKernel(app, { dilation = true, falloff = true, extent = true, near = true } = {}) {
   if (extent && !falloff) throw new Error('useTrainingKernel: extent needs falloff');
   if (app.graphicsDevice.isWebGPU) throw new Error('useTrainingKernel: WebGL2 only (these hooks are GLSL)');
   const k2 = extent ? Math.log(1 / ALPHA_CUT) / 4 : 1;
@@ -144,10 +156,10 @@ export function useTrainingKernel(app, { dilation = true, falloff = true, extent
                                 : (k2 - 1) * ENGINE_BLUR_HALF_PX2;
   const material = app.scene.gsplat.material;
   const chunks = material.getShaderChunks('glsl');
-  if (dilation || extent) chunks.set('gsplatModifyVS', vertexChunk(extraHalfPx2, k2));
+  if (dilation || extent || near) chunks.set('gsplatModifyVS', vertexChunk(extraHalfPx2, k2, near ? NEAR_PLANE : 0));
   else chunks.delete('gsplatModifyVS');
   if (falloff) chunks.set('gsplatModifyPS', fragmentChunk(k2));
   else chunks.delete('gsplatModifyPS');
   material.update();
-  return { dilation, falloff, extent, k2, extraHalfPx2 };
+  return { dilation, falloff, extent, near, k2, extraHalfPx2 };
 }

@@ -43,7 +43,10 @@ function projection(cam, near, far) {
   const a = m.asArray().slice();
   a[0] = (2 * cam.fx) / cam.width;
   a[5] = (2 * cam.fy) / cam.height;
-  a[8] = (2 * cam.cx) / cam.width - 1;
+  // Clip x = 2fx/w x + (1 - 2cx/w) z and clip y = 2fy/h y + (2cy/h - 1) z for a camera looking
+  // along -z (image rows grow downwards); the x term's sign was reversed until a Panoptic camera
+  // (cx 5.7 px left of the centre) showed an 11 px shift.
+  a[8] = 1 - (2 * cam.cx) / cam.width;
   a[9] = (2 * cam.cy) / cam.height - 1;
   return Matrix.FromArray(a);
 }
@@ -98,7 +101,7 @@ async function main() {
     camera.position = Vector3.FromArray(position);
     camera.upVector = Vector3.FromArray(up);
     camera.setTarget(Vector3.FromArray(target));
-    camera.minZ = 0.01;
+    camera.minZ = fixed.near ?? 0.01;  // the renderer's near plane where the camera file states it
     camera.maxZ = 1000;
     camera.freezeProjectionMatrix(projection(fixed, camera.minZ, camera.maxZ));
   } else {

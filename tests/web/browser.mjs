@@ -63,7 +63,8 @@ export async function newWatchedPage(context, width, height) {
 // Runs in the page (page.evaluate): compares the player's canvas (window.atexView.canvas) with
 // a reference PNG of the same size: foreground IoU overall and per dominant colour, the same
 // IoU against the picture turned upside down and mirrored left-right, PSNR (and PSNR against
-// the reference with red and blue swapped), a side-by-side PNG (player left) and the player's
+// the reference with red and blue swapped, and of the picture turned upside down and mirrored:
+// the orientation guards of full-frame scenes, where foreground IoU means little), a side-by-side PNG (player left) and the player's
 // picture alone (PNGs as base64).
 export async function compareInPage(referenceUrl) {
   const gl = window.atexView.canvas;
@@ -98,16 +99,22 @@ export async function compareInPage(referenceUrl) {
   };
   // se: squared error; seSwapped: the same against the reference with red and blue swapped
   // (what a player reading the colour channels in the wrong order would score).
-  let se = 0, seSwapped = 0, fgA = 0, fgB = 0;
+  // seUpsideDown, seMirrored: the player's picture turned upside down / mirrored left-right.
+  let se = 0, seSwapped = 0, seUpsideDown = 0, seMirrored = 0, fgA = 0, fgB = 0;
   for (let i = 0; i < a.length; i += 4) {
+    const x = (i / 4) % w, y = Math.floor(i / 4 / w);
+    const iu = ((h - 1 - y) * w + x) * 4, im = (y * w + w - 1 - x) * 4;
     for (let c = 0; c < 3; ++c) {
       se += ((a[i + c] - b[i + c]) / 255) ** 2;
       seSwapped += ((a[i + c] - b[i + 2 - c]) / 255) ** 2;
+      seUpsideDown += ((a[iu + c] - b[i + c]) / 255) ** 2;
+      seMirrored += ((a[im + c] - b[i + c]) / 255) ** 2;
     }
     fgA += fg(a, i) ? 1 : 0;
     fgB += fg(b, i) ? 1 : 0;
   }
-  const mse = se / (w * h * 3), mseSwapped = seSwapped / (w * h * 3);
+  const n = w * h * 3;
+  const db = (sum) => (sum > 0 ? -10 * Math.log10(sum / n) : 99);
   const png = async (c) => {
     const bytes = new Uint8Array(await (await c.convertToBlob({ type: 'image/png' })).arrayBuffer());
     let binary = '';
@@ -121,8 +128,7 @@ export async function compareInPage(referenceUrl) {
     width: w, height: h,
     iou: all, iouRed: r, iouGreen: gr, iouBlue: bl,
     iouUpsideDown: iou(true)[3], iouMirrored: iou(false, true)[3],
-    psnr: mse > 0 ? -10 * Math.log10(mse) : 99,
-    psnrRedBlueSwapped: mseSwapped > 0 ? -10 * Math.log10(mseSwapped) : 99,
+    psnr: db(se), psnrRedBlueSwapped: db(seSwapped), psnrUpsideDown: db(seUpsideDown), psnrMirrored: db(seMirrored),
     foregroundPlayer: fgA / (w * h), foregroundReference: fgB / (w * h),
     sideBySidePng: await png(canvas),
     playerPng: await png(alone),

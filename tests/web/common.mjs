@@ -31,3 +31,24 @@ export function finish() {
   }
   console.log('all checks passed');
 }
+
+// The checks of a trained model's full-frame scene (a real capture: nearly every pixel is
+// covered, so the foreground IoU and its upside-down/mirrored variants of the object scenes say
+// little): PSNR against our render >= floor; the same picture against the reference with red and
+// blue swapped must fail that floor (a wrong colour order cannot pass); the picture turned upside
+// down or mirrored left-right must match clearly worse than as shown (a wrong axis or handedness
+// cannot pass).
+export const ORIENTATION_MARGIN_DB = 3;
+export function checkFullFrame(label, stats, floor) {
+  check(stats.psnr >= floor, `${label}: PSNR ${stats.psnr.toFixed(2)} dB against our render >= ${floor} dB`);
+  check(stats.psnrRedBlueSwapped < floor,
+        `${label}: with red and blue swapped the guard fails (${stats.psnrRedBlueSwapped.toFixed(2)} dB < ${floor} dB)`);
+  checkOrientation(label, stats);
+}
+// The orientation guard alone (a player's default settings, where no PSNR floor applies).
+export function checkOrientation(label, stats) {
+  for (const [what, db] of [['upside down', stats.psnrUpsideDown], ['mirrored', stats.psnrMirrored]]) {
+    check(db < stats.psnr - ORIENTATION_MARGIN_DB,
+          `${label}: ${what} matches clearly worse (${db.toFixed(2)} dB < ${stats.psnr.toFixed(2)} - ${ORIENTATION_MARGIN_DB} dB)`);
+  }
+}

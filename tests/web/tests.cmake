@@ -10,6 +10,9 @@
 #   web_spark_render    our .ply and .spz in three.js with Spark (npm three, @sparkjsdev/spark);
 #                       both player checks (player_render.mjs, pages in players/): the "F" upright,
 #                       not mirrored, per-colour IoU; the lego sample upright, PSNR against our render
+#                       (the fixture's optional player_model_vN scenes, an external trained model
+#                       at chosen test views, are drawn by the three players only when it was built
+#                       with ATEX_PLAYER_MODEL: bench/web_players_model.sh, not CTest)
 #   web_cli_export      `atex export` / `atex import` end to end (no node needed)
 #   web_view_cli        `atex view` on the command line (no node needed)
 #   web_view_page       the page of `atex view` in headless Chromium from file:// (view_page.mjs)
@@ -18,7 +21,8 @@
 set(ATEX_WEB_DIR ${CMAKE_CURRENT_LIST_DIR})
 set(ATEX_WEB_OUT ${PROJECT_BINARY_DIR}/web_fixture)
 
-add_executable(atex_web_fixture ${ATEX_WEB_DIR}/web_fixture.cc ${PROJECT_SOURCE_DIR}/converters/src/gltf/gltf_test_scene.cc)
+add_executable(atex_web_fixture ${ATEX_WEB_DIR}/web_fixture.cc ${ATEX_WEB_DIR}/web_fixture_player.cc
+  ${PROJECT_SOURCE_DIR}/converters/src/gltf/gltf_test_scene.cc)
 target_include_directories(atex_web_fixture PRIVATE ${PROJECT_SOURCE_DIR}/converters/src)
 target_link_libraries(atex_web_fixture PRIVATE atex_converters atex atex_build_flags)
 

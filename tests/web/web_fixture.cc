@@ -13,6 +13,9 @@
 //                           view's camera and three references (our render, untextured, truth);
 //                           player_lego_quantized*.glb: the same .glb with --quantize (and --meshopt)
 //                           player_lego_baked.glb the same with --bake-textures
+//   player_model_vN.*       optional: an external trained model (ATEX_PLAYER_MODEL, its dataset
+//                           ATEX_PLAYER_MODEL_DATA) at test views ATEX_PLAYER_MODEL_VIEWS (default
+//                           0), the same files as player_lego's (bench/web_players_model.sh)
 //   textured_tiles*         semi-transparent Gaussians with strong 2x2 textures, exported as is
 //                           and with --bake-textures, their camera and our textured render
 // Usage: atex_web_fixture OUT_DIR   (real data from $ATEX_DATA_DIR or the configured default)
@@ -36,8 +39,14 @@
 #include "atex/render.h"
 #include "convert/upright_test_util.h"
 #include "gltf/gltf_test_scene.h"
+#include "web_fixture_player.h"
 
 namespace fs = std::filesystem;
+using atex::web_fixture::CameraJson;
+using atex::web_fixture::RenderReference;
+using atex::web_fixture::SpzV3;
+using atex::web_fixture::WritePlayerScene;
+using atex::web_fixture::WriteText;
 using nlohmann::json;
 
 namespace {
@@ -47,33 +56,6 @@ constexpr double kC0 = 0.28209479177387814;
 int Fail(const std::string& what, const atex::Status& s) {
   std::fprintf(stderr, "atex_web_fixture: %s: %s\n", what.c_str(), s.ToString().c_str());
   return 1;
-}
-
-atex::Status WriteText(const fs::path& path, const std::string& text) {
-  return atex::WriteFileAtomic(path.string(), text.data(), text.size());
-}
-
-// Renders with libatex's reference rasteriser and writes an 8-bit PNG.
-atex::Status RenderReference(const atex::Asset& asset, const atex::Camera& camera, const fs::path& png) {
-  atex::RenderSettings settings;
-  settings.background = asset.metadata.background;
-  auto out = atex::RenderForward(camera, asset.gaussians, asset.textures ? &*asset.textures : nullptr, settings);
-  if (!out.ok()) return out.status();
-  atex::Image image = atex::RenderedImage(*out);
-  for (float& v : image.pixels) v = std::clamp(v, 0.0f, 1.0f);
-  return atex::WriteImage(png.string(), image);
-}
-
-// `atex convert` options for the players' .ply and .spz files: SPZ version 3 (gzip), which
-// Spark reads (it refuses version 4's zstd streams).
-atex::ConvertOptions SpzV3() {
-  atex::ConvertOptions options;
-  options.spz_version = 3;
-  return options;
-}
-
-json CameraJson(const atex::Camera& c) {
-  return {{"width", c.width}, {"height", c.height}, {"fx", c.fx}, {"fy", c.fy}, {"cx", c.cx}, {"cy", c.cy}};
 }
 
 void SetColor(atex::Gaussians& g, size_t i, double r, double gr, double b) {
@@ -211,6 +193,45 @@ atex::StatusOr<std::pair<atex::Asset, atex::Camera>> Garden(const fs::path& npz)
   }
   asset.metadata.axes = "opencv";  // COLMAP's world: y points down in these captures
   return std::make_pair(std::move(asset), camera);
+}
+
+// Section 7 of main: the scenes of ATEX_PLAYER_MODEL at ATEX_PLAYER_MODEL_VIEWS of
+// ATEX_PLAYER_MODEL_DATA's test views. Returns main's exit code.
+int WriteModelScenes(const fs::path& out, const std::string& model, json* manifest) {
+  const char* data = std::getenv("ATEX_PLAYER_MODEL_DATA");
+  if (!data || !*data) {
+    return Fail("ATEX_PLAYER_MODEL", atex::MakeError(atex::StatusCode::kInvalidArgument,
+                                                     "ATEX_PLAYER_MODEL_DATA (the model's dataset) is not set"));
+  }
+  auto asset = atex::ReadAssetFile(model);
+  if (!asset.ok()) return Fail(model, asset.status());
+  auto dataset = atex::OpenDataset(data);
+  if (!dataset.ok()) return Fail(data, dataset.status());
+  const auto& views = (*dataset)->test_views();
+  const char* list = std::getenv("ATEX_PLAYER_MODEL_VIEWS");
+  std::string indices = list && *list ? list : "0";
+  (*manifest)["player_model"] = json::array();
+  for (size_t start = 0; start <= indices.size();) {
+    const size_t end = std::min(indices.find(',', start), indices.size());
+    const std::string item = indices.substr(start, end - start);
+    start = end + 1;
+    char* rest = nullptr;
+    const long index = std::strtol(item.c_str(), &rest, 10);
+    if (item.empty() || *rest != '\0' || index < 0 || size_t(index) >= views.size()) {
+      return Fail("ATEX_PLAYER_MODEL_VIEWS", atex::MakeError(atex::StatusCode::kInvalidArgument, "\"", item,
+                                                             "\" is not a test view index (0..", views.size() - 1, ")"));
+    }
+    const std::string stem = "player_model_v" + item;
+    std::fprintf(stderr, "atex_web_fixture: %s: %s at t = %g\n", stem.c_str(), views[size_t(index)].camera.name.c_str(),
+                 views[size_t(index)].camera.time);
+    auto scene = WritePlayerScene(out, stem, *asset, **dataset, views[size_t(index)], false);
+    if (!scene.ok()) return Fail(stem, scene.status());
+    (*scene)["name"] = stem;
+    (*scene)["test_view"] = index;
+    (*scene)["model"] = model;
+    (*manifest)["player_model"].push_back(*scene);
+  }
+  return 0;
 }
 
 }  // namespace
@@ -426,63 +447,31 @@ int main(int argc, char** argv) {
   }
 
   // 6. A trained asset in the players (issue 21 item 4): the lego sample baked at the time of the
-  //    dataset's first test view, exported to glTF, with three references for that camera: our
-  //    render (textures included: what `atex render` shows), our render of the same Gaussians
-  //    without their textures (what a KHR_gaussian_splatting player can show at best), and the
-  //    ground truth.
+  //    dataset's first test view, exported to glTF, .ply and .spz, with three references for that
+  //    camera: our render (textures included: what `atex render` shows), our render of the same
+  //    Gaussians without their textures (what a KHR_gaussian_splatting player can show at best),
+  //    and the ground truth; also the quantised and texture-baked exports.
   if (source_dir && fs::exists(lego)) {
     auto sample = atex::ReadAssetFile((fs::path(source_dir) / "samples" / "lego_adaptive_2MiB.atex").string());
     if (!sample.ok()) return Fail("lego sample", sample.status());
     auto dataset = atex::OpenDataset(lego.string());
     if (!dataset.ok()) return Fail("lego dataset", dataset.status());
-    const atex::View& view = (*dataset)->test_views().at(0);
-    auto truth = (*dataset)->LoadImage(view);
-    if (!truth.ok()) return Fail("lego test view 0", truth.status());
-    atex::Asset baked;
-    baked.metadata = sample->metadata;
-    baked.textures = sample->textures;
-    atex::Status s = atex::DeformForward(*sample->deformation, sample->gaussians, view.camera.time, &baked.gaussians,
-                                         nullptr);
-    atex::GltfExportOptions options;
-    options.time = view.camera.time;
-    if (s.ok()) s = atex::WriteGltfFile((out / "player_lego.glb").string(), *sample, options);
-    // Issue 21 item 5: the same with the textures baked into plain Gaussians (`--bake-textures`).
-    atex::GltfExportOptions baked_options = options;
-    baked_options.bake_textures = true;
-    if (s.ok()) s = atex::WriteGltfFile((out / "player_lego_baked.glb").string(), *sample, baked_options);
-    // The same as `atex export --quantize [--meshopt]` writes it (KHR_mesh_quantization).
-    options.quantize = true;
-    if (s.ok()) s = atex::WriteGltfFile((out / "player_lego_quantized.glb").string(), *sample, options);
-    options.meshopt = true;
-    if (s.ok()) s = atex::WriteGltfFile((out / "player_lego_quantized_meshopt.glb").string(), *sample, options);
-    // `atex convert --time T` to .ply and .spz v3 (the world turned to each format's up axis).
-    atex::ConvertOptions at_time = SpzV3();
-    at_time.time = view.camera.time;
-    for (const char* name : {"player_lego.ply", "player_lego.spz"}) {
-      if (s.ok()) s = atex::WriteAssetAs((out / name).string(), *sample, atex::FileFormat::kUnknown, at_time);
-    }
-    if (s.ok()) s = RenderReference(baked, view.camera, out / "player_lego_atex.png");
-    atex::Asset plain = baked;
-    plain.textures.reset();
-    if (s.ok()) s = RenderReference(plain, view.camera, out / "player_lego_untextured.png");
-    if (s.ok()) s = atex::WriteImage((out / "player_lego_truth.png").string(), **truth);
-    if (!s.ok()) return Fail("player lego", s);
-    json cam = CameraJson(view.camera);
-    const auto& bg = sample->metadata.background;
-    cam["background"] = {bg[0], bg[1], bg[2]};
-    cam["pose"] = {{"opencv_world_to_camera", view.camera.world_to_camera}, {"apply_node_rotation", true}};
-    s = WriteText(out / "player_lego_camera.json", cam.dump(2));
-    if (!s.ok()) return Fail("player lego camera", s);
-    manifest["player_lego"] = {{"glb", "player_lego.glb"}, {"ply", "player_lego.ply"}, {"spz", "player_lego.spz"},
-                               {"camera", "player_lego_camera.json"},
-                               {"reference", "player_lego_untextured.png"}, {"atex", "player_lego_atex.png"},
-                               {"truth", "player_lego_truth.png"}, {"time", view.camera.time},
-                               {"gaussians", sample->gaussians.size()}};
+    auto scene = WritePlayerScene(out, "player_lego", *sample, **dataset, (*dataset)->test_views().at(0), true);
+    if (!scene.ok()) return Fail("player lego", scene.status());
+    manifest["player_lego"] = *scene;
     manifest["player_lego_quantized"] = {{"glb", "player_lego_quantized.glb"},
                                          {"glb_meshopt", "player_lego_quantized_meshopt.glb"}};
     manifest["validator"].push_back("player_lego_quantized.glb");
     manifest["player_lego_baked"] = manifest["player_lego"];
     manifest["player_lego_baked"]["glb"] = "player_lego_baked.glb";
+  }
+
+  // 7. Optionally an external trained model in the players (bench/web_players_model.sh):
+  //    ATEX_PLAYER_MODEL (an .atex), ATEX_PLAYER_MODEL_DATA (its dataset) and
+  //    ATEX_PLAYER_MODEL_VIEWS (comma-separated test-view indices, default 0) give the scenes
+  //    player_model_vINDEX, listed in the manifest's "player_model" array.
+  if (const char* model = std::getenv("ATEX_PLAYER_MODEL"); model && *model) {
+    if (int rc = WriteModelScenes(out, model, &manifest); rc != 0) return rc;
   }
 
   if (atex::Status s = WriteText(out / "manifest.json", manifest.dump(2)); !s.ok()) return Fail("manifest", s);

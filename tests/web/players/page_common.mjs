@@ -34,9 +34,11 @@ async function nodeRotation(url) {
 
 // Reads the fixture's camera; resolves to { camera, position, target, up, projection, ... }
 // in the player's world. `projection` is column-major (OpenGL clip space, depth -1..1) with
-// the principal point of the OpenCV intrinsics.
-export async function fixtureCamera(near = 0.01, far = 1000) {
+// the principal point of the OpenCV intrinsics. The near plane is the camera's `near` where the
+// fixture states it (our renderer's, culling the splats in front of it as 3DGS does), else `near`.
+export async function fixtureCamera(defaultNear = 0.01, far = 1000) {
   const camera = await (await fetch(params.get('camera'))).json();
+  const near = camera.near ?? defaultNear;
   let position, target, up;
   if (camera.pose.gltf) {
     ({ position, target, up } = camera.pose.gltf);

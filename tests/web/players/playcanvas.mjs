@@ -35,12 +35,13 @@ async function main() {
   app.setCanvasResolution(pc.RESOLUTION_FIXED, width, height);
   app.graphicsDevice.maxPixelRatio = 1;
   // ?kernel=3dgs draws splats as 3DGS training does (samples/web/playcanvas_3dgs.mjs: its 0.3 px²
-  // blur, its Gaussian not lowered, its 1/255 cut); ?kernel=PARTS (comma-separated: dilation,
-  // falloff, extent) only some of these. Experiments: ?dataformat=large|compact (the engine's
-  // work-buffer layout, app.scene.gsplat.dataFormat), ?alphaclip=A (its alphaClipForward).
+  // blur, its Gaussian not lowered, its 1/255 cut, its 0.2 near-plane cull); ?kernel=PARTS
+  // (comma-separated: dilation, falloff, extent, near) only some of these. Experiments:
+  // ?dataformat=large|compact (the engine's work-buffer layout, app.scene.gsplat.dataFormat),
+  // ?alphaclip=A (its alphaClipForward).
   let kernel = null;
   if (params.get('kernel')) {
-    const all = ['dilation', 'falloff', 'extent'];
+    const all = ['dilation', 'falloff', 'extent', 'near'];
     const parts = params.get('kernel') === '3dgs' ? all : params.get('kernel').split(',');
     const unknown = parts.filter((p) => !all.includes(p));
     if (unknown.length) throw new Error(`unknown kernel part(s) ${unknown.join(', ')} (known: 3dgs, ${all.join(', ')})`);
