@@ -255,7 +255,9 @@ TEST_F(CliRobustness, JsonErrorsOnStdout) {
   EXPECT_NE(r.exit_code, 0);
   j = nlohmann::json::parse(r.out, nullptr, false);
   ASSERT_FALSE(j.is_discarded()) << r.out;
-  if (j.contains("error")) EXPECT_TRUE(j["error"]["offset"].is_number() || j["error"]["offset"].is_null());
+  if (j.contains("error")) {
+    EXPECT_TRUE(j["error"]["offset"].is_number() || j["error"]["offset"].is_null());
+  }
   // A bad command line under --json: JSON too, exit 2.
   r = Run("fit --json '" + asset_ + "' '" + Path("o.atex") + "' --budget .");
   EXPECT_EQ(r.exit_code, 2);
