@@ -78,7 +78,10 @@ class Rendezvous {
                              [&] { return generation_ != generation || departing_ || !broken_.ok(); })) {
       return Break(rank, mine, "the other ranks");
     }
-    if (!broken_.ok()) return broken_;
+    // A collective that completed delivers its result even if a rank that already left it has
+    // aborted since: that rank saw the result, so this one must too (two ranks reporting one
+    // error, not one the error and the other "cancelled").
+    if (!departing_) return broken_;
     const Status status = status_;
     if (status.ok()) CopyOut(rank);
     if (++departed_ == ranks_) {

@@ -110,21 +110,25 @@ Status DataParallel::CheckReplicasAgree(Backend& backend, const std::string& whe
   if (world_size() == 1) return Status::Ok();
   ModelState state;
   ATEX_RETURN_IF_ERROR(backend.Save(&state));
+  // Every rank's checksum, gathered by a sum into its own slots: split into 32-bit halves,
+  // which a double holds exactly, so the message can name each drifting rank's value.
   const uint64_t mine = ParameterChecksum(state);
-  uint64_t root = mine;
-  ATEX_RETURN_IF_ERROR(comm_->Broadcast(&root, sizeof(root), 0));
-  std::vector<double> differs(world_size(), 0.0);
-  differs[rank()] = mine != root ? 1.0 : 0.0;
-  ATEX_RETURN_IF_ERROR(comm_->AllReduceSum(differs.data(), differs.size()));
+  std::vector<double> halves(2 * static_cast<size_t>(world_size()), 0.0);
+  halves[2 * rank()] = static_cast<double>(mine >> 32);
+  halves[2 * rank() + 1] = static_cast<double>(mine & 0xffffffffu);
+  ATEX_RETURN_IF_ERROR(comm_->AllReduceSum(halves.data(), halves.size()));
+  const auto checksum_of = [&](int r) {
+    return (static_cast<uint64_t>(halves[2 * r]) << 32) | static_cast<uint64_t>(halves[2 * r + 1]);
+  };
   std::string ranks;
-  for (int r = 0; r < world_size(); ++r) {
-    if (differs[r] != 0) ranks += (ranks.empty() ? "" : ", ") + std::to_string(r);
+  for (int r = 1; r < world_size(); ++r) {
+    if (checksum_of(r) == checksum_of(0)) continue;
+    ranks += (ranks.empty() ? "" : ", ") + std::to_string(r) + " (checksum " + std::to_string(checksum_of(r)) + ")";
   }
   if (ranks.empty()) return Status::Ok();
-  return MakeError(
-      StatusCode::kInternal, "data parallel: at ", where, " the parameters of rank(s) ", ranks,
-      " differ from rank 0's (checksum of rank ", rank(), ": ", mine, ", rank 0: ", root,
-      "); the replicas drifted apart (a gradient or statistic not reduced, or a non-deterministic update)");
+  return MakeError(StatusCode::kInternal, "data parallel: at ", where, " the parameters of rank(s) ", ranks,
+                   " differ from rank 0's (checksum ", checksum_of(0),
+                   "); the replicas drifted apart (a gradient or statistic not reduced, or a non-deterministic update)");
 }
 
 }  // namespace atex::train
