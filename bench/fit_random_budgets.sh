@@ -2,13 +2,16 @@
 # `atex fit` on N random budgets of one input: every output must be at or under its budget
 # and pass `atex verify`. A benchmark script, not a CI test (N fits take minutes to hours).
 #
-#   bench/fit_random_budgets.sh [-n N] [-s SEED] [-a ATEX] [-i INPUT] [-j JOBS] [-- FIT_ARGS...]
+#   bench/fit_random_budgets.sh [-n N] [-s SEED] [-k FIRST] [-a ATEX] [-i INPUT] [-j JOBS] [-o OUT]
+#                               [-- FIT_ARGS...]
 #
 # Budgets are drawn uniformly in log space between the input's smallest reachable size
 # (the E16 refusal names it; taken from one fit at 1 byte) and its file size, from a
 # seeded generator, so a run is reproducible. Several budgets share no plan here: each is
 # one `atex fit` process, as a user would run it. Prints a summary line and writes the
-# rows (budget, bytes, seconds, verify) to OUT (default out/fit_random_budgets.csv).
+# rows (index, budget, bytes, seconds, verify) to OUT (default out/fit_random_budgets.csv).
+# -k FIRST fits only the budgets from index FIRST on (of the same N drawn): it finishes a
+# run that was cut short without changing which budgets the whole run covers.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
@@ -17,17 +20,19 @@ seed=1
 atex=build/bin/atex
 input=samples/lego_adaptive_2MiB.atex
 jobs=1
+first=0
 out=out/fit_random_budgets.csv
 while [ $# -gt 0 ]; do
   case $1 in
     -n) n=$2; shift 2 ;;
     -s) seed=$2; shift 2 ;;
+    -k) first=$2; shift 2 ;;
     -a) atex=$2; shift 2 ;;
     -i) input=$2; shift 2 ;;
     -j) jobs=$2; shift 2 ;;
     -o) out=$2; shift 2 ;;
     --) shift; break ;;
-    -h|--help) sed -n 2,11p "$0"; exit 0 ;;
+    -h|--help) sed -n 2,14p "$0"; exit 0 ;;
     *) echo "unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -58,19 +63,20 @@ fit_one() {  # BUDGET INDEX
   local budget=$1 k=$2 file="$work/fit_$2.atex" start end ok=1 bytes
   start=$(date +%s.%N)
   if ! "$atex" fit "$input" "$file" --budget "$budget" "${fit_args[@]}" > /dev/null 2> "$work/err_$k"; then
-    echo "$budget,-1,0,fit-failed"
+    echo "$k,$budget,-1,0,fit-failed"
     return
   fi
   end=$(date +%s.%N)
   bytes=$(stat -c %s "$file")
   "$atex" verify "$file" > /dev/null 2>&1 || ok=0
-  echo "$budget,$bytes,$(awk -v a="$start" -v b="$end" 'BEGIN { printf "%.2f", b - a }'),$([ $ok = 1 ] && echo verified || echo verify-failed)"
+  echo "$k,$budget,$bytes,$(awk -v a="$start" -v b="$end" 'BEGIN { printf "%.2f", b - a }'),$([ $ok = 1 ] && echo verified || echo verify-failed)"
   rm -f "$file"
 }
 
-echo "budget,bytes,seconds,check" > "$out"
+echo "index,budget,bytes,seconds,check" > "$out"
 k=0
 while read -r budget; do
+  if [ "$k" -lt "$first" ]; then k=$((k + 1)); continue; fi
   fit_one "$budget" "$k" >> "$out" &
   k=$((k + 1))
   while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n; done

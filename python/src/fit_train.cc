@@ -120,8 +120,13 @@ nlohmann::json FitReport(const Asset& input, uint64_t input_bytes, const fit::Fi
   nlohmann::json moves = nlohmann::json::array();
   for (const fit::Move& m : fitted.moves) moves.push_back(fit::MoveToJson(m));
   r["moves"] = moves;
-  const double d = fitted.moves.empty() ? plan.initial_distortion : fitted.moves.back().distortion_after;
-  r["estimated_psnr_vs_input"] = d > 0 ? -10.0 * std::log10(d) : 99.0;
+  if (fitted.smallest_fallback) {
+    // The levers' smallest asset, never measured by the plan: no estimate to give.
+    r["smallest_fallback"] = true;
+  } else {
+    const double d = fitted.moves.empty() ? plan.initial_distortion : fitted.moves.back().distortion_after;
+    r["estimated_psnr_vs_input"] = d > 0 ? -10.0 * std::log10(d) : 99.0;
+  }
   r["plan_timing"] = fit::TimingToJson(plan.timing);
   r["backend"] = backend;
   return r;

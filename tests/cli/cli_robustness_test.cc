@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
 
 #include <nlohmann/json.hpp>
 
@@ -173,6 +174,25 @@ TEST_F(CliRobustness, FitOptionValues) {
   // in == out: refused without --force.
   const Result same = Run("fit '" + in + "' '" + in + "' --keep-count 0.5");
   ExpectRefused(same, 1, "is the input", "fit in == out");
+}
+
+// Every budget that the E16 check accepts is met, the smallest one included: the greedy plan
+// can stop a few bytes above it (was: E10 "the fit plan reaches 7672 bytes at best" for a
+// 7,665-byte budget of this sample, whose minimum is 7,616).
+TEST_F(CliRobustness, FitMeetsTheSmallestBudgetThatTheCheckAccepts) {
+  const std::string in = CopyAsset("in.atex");
+  const Result refused = Run("fit --backend cpu '" + in + "' '" + Path("tiny.atex") + "' --budget 1");
+  ExpectRefused(refused, 1, "E16", "budget 1");
+  const std::string marker = "from this input, ";
+  const size_t at = refused.err.find(marker);
+  ASSERT_NE(at, std::string::npos) << refused.err;
+  const uint64_t minimum = std::stoull(refused.err.substr(at + marker.size()));
+  const std::string out = Path("smallest.atex");
+  const Result fitted =
+      Run("fit --backend cpu --json '" + in + "' '" + out + "' --budget " + std::to_string(minimum));
+  ASSERT_EQ(fitted.exit_code, 0) << fitted.err;
+  EXPECT_LE(fs::file_size(out), minimum);
+  EXPECT_EQ(Run("verify '" + out + "'").exit_code, 0);
 }
 
 TEST_F(CliRobustness, RenderAndFpsOptionValues) {

@@ -186,6 +186,9 @@ struct Plan {
   double initial_distortion = 0;  // of the input re-encoded with the starting encodings (0 for lossless)
   std::vector<Move> moves;
   std::vector<uint32_t> prune_order;  // Gaussians (input indices) in the order prune moves remove them
+  // The plan's levers (PlanOptions): ApplyPlan falls back to MinimumBytes's asset with them.
+  LeverSet levers = kDefaultLevers;
+  int min_grid_resolution = 4;
 };
 
 // Fills asset->stats->importance when it is missing (assets converted from other
@@ -207,6 +210,14 @@ StatusOr<WriteOptions> EncodingsOfFile(const uint8_t* data, size_t size, const W
 // minimum resolution with grid.
 StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, int min_grid_resolution = 4,
                                 LeverSet levers = kDefaultLevers);
+// That smallest asset itself, with its encodings and the input index of each Gaussian kept.
+struct SmallestAsset {
+  Asset asset;
+  WriteOptions write;
+  std::vector<uint32_t> kept;
+};
+StatusOr<SmallestAsset> BuildSmallestAsset(const Asset& asset, const WriteOptions& write, int min_grid_resolution = 4,
+                                           LeverSet levers = kDefaultLevers);
 // kBudgetTooSmall, naming MinimumBytes and the levers, when `budget_bytes` is below it; OK otherwise.
 Status CheckBudget(const Asset& asset, const WriteOptions& write, uint64_t budget_bytes, int min_grid_resolution = 4,
                    LeverSet levers = kDefaultLevers);
@@ -221,6 +232,9 @@ struct Fitted {
   WriteOptions write;          // encodings used
   std::vector<Move> moves;     // the plan's moves that were applied (the last one possibly partial)
   std::vector<uint32_t> kept;  // input indices of the Gaussians kept, ascending
+  // True when even the whole plan did not fit and the output is the levers' smallest asset
+  // (the one MinimumBytes measures); `moves` is then empty.
+  bool smallest_fallback = false;
   double apply_seconds = 0;    // ApplyPlan's wall time
   double refill_seconds = 0;   // of which giving slack back below an indivisible last move
 };
@@ -230,8 +244,11 @@ struct Fitted {
 // indivisible, the moves before it are undone, latest first, to spend the slack again: a
 // divisible one is bisected on its count (the refill stops where one is only partly undone
 // or needed whole: the budget binds), an indivisible one is undone whole when the output
-// without it still fits. Fails with kOutOfRange when even the whole plan does not fit (the
-// message names the smallest size reached).
+// without it still fits. When even the whole plan does not fit (its greedy search can stop a
+// few bytes above MinimumBytes: removing one more Gaussian may not shrink the compressed
+// file), the output is the smallest asset of the plan's levers, exactly as MinimumBytes
+// builds it, so every budget that CheckBudget accepts is met. Fails with kOutOfRange only
+// when that one is over the budget too (the message names both sizes).
 StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes);
 
 // Keeps the ceil(fraction · N) most important Gaussians of `order` (ascending

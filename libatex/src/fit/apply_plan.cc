@@ -30,8 +30,34 @@ State InitialState(const Asset& asset, const WriteOptions& write) {
   return s;
 }
 
+// The greedy plan stopped above the budget (no single move saved bytes any more), but the
+// levers' smallest asset may still fit: then it is the output, as CheckBudget promised.
+StatusOr<Fitted> SmallestFallback(const Asset& asset, const Plan& plan, const WriteOptions& write,
+                                  uint64_t budget_bytes, uint64_t reached) {
+  Stopwatch whole;
+  ATEX_ASSIGN_OR_RETURN(SmallestAsset smallest,
+                        BuildSmallestAsset(asset, write, plan.min_grid_resolution, plan.levers));
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(smallest.asset, smallest.write));
+  if (bytes.size() > budget_bytes) {
+    return MakeError(StatusCode::kOutOfRange, "the fit plan reaches ", reached, " bytes at best and the smallest asset of",
+                     " the levers ", LeverSetNames(plan.levers), " is ", bytes.size(), " bytes, both above the budget of ",
+                     budget_bytes, " bytes");
+  }
+  Fitted out;
+  ReadOptions read;
+  read.read_stats = false;
+  ATEX_ASSIGN_OR_RETURN(out.asset, DecodeAsset(bytes.data(), bytes.size(), read));
+  out.bytes = std::move(bytes);
+  out.write = smallest.write;
+  out.kept = std::move(smallest.kept);
+  out.smallest_fallback = true;
+  out.apply_seconds = whole.Lap();
+  return out;
+}
+
 }  // namespace internal
 
+using internal::SmallestFallback;
 using internal::State;
 using internal::Stopwatch;
 using internal::RefillSlack;
@@ -51,8 +77,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
     while (j < plan.moves.size() && plan.moves[j].bytes_after > budget_bytes) ++j;
     if (j == plan.moves.size()) {
       const uint64_t reached = plan.moves.empty() ? bytes.size() : plan.moves.back().bytes_after;
-      return MakeError(StatusCode::kOutOfRange, "the fit plan reaches ", reached,
-                       " bytes at best, above the budget of ", budget_bytes, " bytes");
+      return SmallestFallback(asset, plan, write, budget_bytes, reached);
     }
     for (size_t k = 0; k < j; ++k) {
       ATEX_RETURN_IF_ERROR(ApplyMove(plan.moves[k], plan.prune_order, &state.asset, &state.write, &state.kept));

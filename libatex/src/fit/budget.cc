@@ -1,6 +1,7 @@
-// Budget arithmetic (fit.h): the smallest asset a lever set can reach, and the refusal of
-// budgets below it.
+// Budget arithmetic (fit.h): the smallest asset a lever set can reach, its size, and the
+// refusal of budgets below it.
 #include <limits>
+#include <numeric>
 
 #include "atex/fit.h"
 #include "levers.h"
@@ -8,12 +9,17 @@
 
 namespace atex::fit {
 
-StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, int min_grid_resolution,
-                                LeverSet levers) {
-  Asset smallest = asset;
+StatusOr<SmallestAsset> BuildSmallestAsset(const Asset& asset, const WriteOptions& write, int min_grid_resolution,
+                                           LeverSet levers) {
+  SmallestAsset out{asset, write, {}};
+  Asset& smallest = out.asset;
+  out.kept.resize(asset.gaussians.size());
+  std::iota(out.kept.begin(), out.kept.end(), 0u);
   if (HasLever(levers, Lever::kPrune) && asset.gaussians.size() > 1) {
+    // Seed 0, not the fit's seed: the size that CheckBudget promises must not depend on it.
     const std::vector<uint32_t> order = ImportanceOrder(asset, 0);
-    ATEX_ASSIGN_OR_RETURN(smallest, KeepMostImportant(asset, order, 1.0 / static_cast<double>(asset.gaussians.size())));
+    ATEX_ASSIGN_OR_RETURN(smallest,
+                          KeepMostImportant(asset, order, 1.0 / static_cast<double>(asset.gaussians.size()), &out.kept));
   }
   if (HasLever(levers, Lever::kShDegree)) {
     while (smallest.gaussians.sh_degree > 0) ATEX_RETURN_IF_ERROR(LowerShDegree(&smallest));
@@ -30,13 +36,18 @@ StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, i
       ATEX_RETURN_IF_ERROR(CoarsenGrid(&smallest, min_grid_resolution));
     }
   }
-  WriteOptions w = write;
   if (HasLever(levers, Lever::kEncoding)) {
     for (int s = 0; s < static_cast<int>(Stream::kCount); ++s) {
-      SetEncoding(&w, static_cast<Stream>(s), ScalarEncoding::kQuant8);
+      SetEncoding(&out.write, static_cast<Stream>(s), ScalarEncoding::kQuant8);
     }
   }
-  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(smallest, w));
+  return out;
+}
+
+StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, int min_grid_resolution,
+                                LeverSet levers) {
+  ATEX_ASSIGN_OR_RETURN(SmallestAsset smallest, BuildSmallestAsset(asset, write, min_grid_resolution, levers));
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(smallest.asset, smallest.write));
   return static_cast<uint64_t>(bytes.size());
 }
 

@@ -1,4 +1,5 @@
 // The budget fitter: texture shrinking, the levers, plans and budgets.
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -99,11 +100,51 @@ TEST(Plan, ThousandRandomBudgetsNeverOver) {
       ASSERT_TRUE(ValidateAsset(*decoded).ok());
       ASSERT_EQ(fitted->kept.size(), decoded->gaussians.size());
     }
-    // Below what the plan reaches: a clear error, never an oversized file.
-    auto too_small = ApplyPlan(f.asset, f.plan, f.write, lo - 1);
+    // Below what the plan reaches but not below the minimum: the levers' smallest asset.
+    if (f.minimum < lo) {
+      auto smallest = ApplyPlan(f.asset, f.plan, f.write, lo - 1);
+      ASSERT_TRUE(smallest.ok()) << smallest.status().ToString();
+      EXPECT_TRUE(smallest->smallest_fallback);
+      EXPECT_EQ(smallest->bytes.size(), f.minimum);
+    }
+    // Below both: a clear error naming both sizes, never an oversized file.
+    auto too_small = ApplyPlan(f.asset, f.plan, f.write, std::min(lo, f.minimum) - 1);
     EXPECT_FALSE(too_small.ok());
     EXPECT_NE(too_small.status().message().find(std::to_string(lo)), std::string::npos);
+    EXPECT_NE(too_small.status().message().find(std::to_string(f.minimum)), std::string::npos);
   }
+}
+
+// A greedy plan can stop above MinimumBytes: near the end, removing one more Gaussian may not
+// shrink the compressed file, so no move saves bytes (the sample asset's plan stopped at 7,672
+// bytes against a minimum of 7,616, and a 7,665-byte budget that CheckBudget accepted was
+// refused). Every budget from the minimum up must still be met. A plan cut in half stands in
+// for a search that stopped early.
+TEST(Plan, BudgetsBetweenTheMinimumAndThePlansEndGetTheSmallestAsset) {
+  PlanFixture f = MakePlan(container::SyntheticTextures::kMixed, 29);
+  ASSERT_GE(f.plan.moves.size(), 4u);
+  Plan short_plan = f.plan;
+  short_plan.moves.resize(short_plan.moves.size() / 2);
+  const uint64_t end = short_plan.moves.back().bytes_after;
+  ASSERT_GT(end, f.minimum + 64);
+  for (const uint64_t budget : {f.minimum, f.minimum + 1, (f.minimum + end) / 2, end - 1}) {
+    auto fitted = ApplyPlan(f.asset, short_plan, f.write, budget);
+    ASSERT_TRUE(fitted.ok()) << budget << ": " << fitted.status().ToString();
+    EXPECT_TRUE(fitted->smallest_fallback);
+    EXPECT_TRUE(fitted->moves.empty());
+    EXPECT_EQ(fitted->bytes.size(), f.minimum);
+    ASSERT_EQ(fitted->kept.size(), 1u) << "one Gaussian, the most important";
+    EXPECT_EQ(fitted->asset.gaussians.size(), 1u);
+    EXPECT_EQ(fitted->asset.gaussians.sh_degree, 0);
+    auto decoded = DecodeAsset(fitted->bytes.data(), fitted->bytes.size());
+    ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+    EXPECT_TRUE(ValidateAsset(*decoded).ok());
+  }
+  // At the plan's end the plan itself is applied, not the fallback.
+  auto at_end = ApplyPlan(f.asset, short_plan, f.write, end);
+  ASSERT_TRUE(at_end.ok()) << at_end.status().ToString();
+  EXPECT_FALSE(at_end->smallest_fallback);
+  EXPECT_FALSE(at_end->moves.empty());
 }
 
 TEST(Plan, SmallerBudgetsNeverReduceDistortion) {

@@ -133,6 +133,8 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   Plan plan;
   Stopwatch whole;
   plan.prune_order = ImportanceOrder(asset, options.seed);
+  plan.levers = options.levers;
+  plan.min_grid_resolution = options.min_grid_resolution;
   State state{asset, options.write, {}};
   state.kept.resize(asset.gaussians.size());
   std::iota(state.kept.begin(), state.kept.end(), 0u);

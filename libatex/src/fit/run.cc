@@ -14,6 +14,10 @@
 namespace atex::fit {
 namespace {
 
+constexpr const char* kSmallestFallbackNote =
+    "the plan's greedy search stopped above the budget (no single move saved bytes any more); the output is the "
+    "smallest asset of the levers, the one whose size the budget check names";
+
 // Evenly spaced subset of `views` (all when count <= 0 or count >= size).
 std::vector<View> Spread(const std::vector<View>& views, int count) {
   if (count <= 0 || static_cast<size_t>(count) >= views.size()) return views;
@@ -188,6 +192,7 @@ StatusOr<FitRunOutput> Run::Output(uint64_t budget, Fitted fitted) {
                 {"bytes", fitted.bytes.size()},
                 {"components", ComponentsToJson(fitted.bytes)},
                 {"levers", LeverSummary(input_, fitted.asset, fitted.write)}};
+  if (fitted.smallest_fallback) out.report["smallest_fallback"] = kSmallestFallbackNote;
   if (!eval_views_.empty()) {
     ATEX_ASSIGN_OR_RETURN(out.report["test"], Test(fitted.asset));
   }
@@ -252,6 +257,7 @@ StatusOr<FitRunReport> Run::Go(const std::vector<uint8_t>& input_bytes) {
   report_["levers"] = LeverSummary(input_, result.asset, result.write);
   if (!o_.budgets.empty() || quality_mode) report_["levers"]["allowed"] = LeverSetNames(o_.levers);
   report_["moves"] = moves;
+  if (result.smallest_fallback) report_["smallest_fallback"] = kSmallestFallbackNote;
   if (!plan_timings_.empty()) report_["plan_timing"] = plan_timings_;
   if (last != nullptr) {
     report_["estimated_psnr_vs_input"] = last->distortion_after > 0 ? -10.0 * std::log10(last->distortion_after) : 99.0;
