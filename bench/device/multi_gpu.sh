@@ -9,7 +9,9 @@
 # after the two-GPU gradient test (nccl_data_parallel_test).
 #
 #   bench/device/multi_gpu.sh OUT_DIR [FINE_STEPS=1500]
-# MULTI_GPU_PHASE: all (default), build (the build only), scale (the gradient test and (a) only).
+# MULTI_GPU_PHASE: all (default), build (the build only), scale (the gradient test and (a) only),
+# memory ((a) on 1 and 2 GPUs under NCCL settings that shrink its buffers: which of them brings the
+# 2-GPU peak per GPU down to one GPU's, and what each costs in steps/s; OUT_DIR/memory.json).
 # ATEX_GPU_BUILD picks the build folder (common.sh): a NCCL build beside another job's uses its own.
 # MULTI_GPU_ARGS adds train options to every run (e.g. "--set stage1.init_method=auto" to skip the
 # stereo's seconds); the 2-GPU quality run writes its checkpoint at half of FINE_STEPS.
@@ -57,6 +59,43 @@ run() {  # NAME ARGS...
   kill "$sampler"
   python3 -c "print($end - $start)" > "$out/$name.wall"
 }
+
+if [ "$phase" = memory ]; then
+  # NCCL's per-channel, per-protocol buffers are what the 2-GPU runs added (BENCHMARKS.md, issue 25).
+  variants=("default:" "buffsize_1mib:NCCL_BUFFSIZE=1048576" "channels_4:NCCL_MAX_NCHANNELS=4"
+            "proto_simple:NCCL_PROTO=Simple" "ctas_4_simple_1mib:NCCL_MAX_CTAS=4 NCCL_PROTO=Simple NCCL_BUFFSIZE=1048576")
+  run mem_1gpu --gpus 0 --out "$out/mem_1gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=4
+  names="mem_1gpu"
+  for v in "${variants[@]}"; do
+    name=mem_2gpu_${v%%:*}
+    settings=${v#*:}
+    (
+      # shellcheck disable=SC2086,SC2163  # the settings are words (VAR=VALUE); the ranks inherit them
+      [ -n "$settings" ] && export $settings
+      run "$name" --gpus 0,1 --out "$out/$name.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=8
+    )
+    names="$names $name"
+  done
+  python3 - "$out" $names <<'PY' | tee "$out/memory.json"
+import collections, json, os, sys
+out, rows = sys.argv[1], {}
+for name in sys.argv[2:]:
+    peak = collections.defaultdict(int)
+    for line in open(os.path.join(out, name + ".memory.csv")):
+        parts = [p.strip() for p in line.split(",")]
+        if len(parts) == 2 and parts[1].isdigit():
+            peak[int(parts[0])] = max(peak[int(parts[0])], int(parts[1]))
+    train = json.load(open(os.path.join(out, name + ".train.json")))
+    rows[name] = {"peak_mib_per_gpu": dict(peak),
+                  "fine_steps_per_s": train["steps"]["fine"] / train["seconds"]["fine"]}
+one = rows["mem_1gpu"]
+for name, row in rows.items():
+    row["peak_over_1gpu"] = max(row["peak_mib_per_gpu"].values()) / max(one["peak_mib_per_gpu"].values())
+    row["step_rate_over_1gpu"] = row["fine_steps_per_s"] / one["fine_steps_per_s"]
+print(json.dumps(rows, indent=1))
+PY
+  exit 0
+fi
 
 # (a) scaling: batch per GPU fixed at 4, 300 fine steps.
 run scale_1gpu --gpus 0 --out "$out/scale_1gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=4
