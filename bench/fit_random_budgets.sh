@@ -2,8 +2,8 @@
 # `atex fit` on N random budgets of one input: every output must be at or under its budget
 # and pass `atex verify`. A benchmark script, not a CI test (N fits take minutes to hours).
 #
-#   bench/fit_random_budgets.sh [-n N] [-s SEED] [-k FIRST] [-a ATEX] [-i INPUT] [-j JOBS] [-o OUT]
-#                               [-- FIT_ARGS...]
+#   bench/fit_random_budgets.sh [-n N] [-s SEED] [-k FIRST] [-u UPPER] [-a ATEX] [-i INPUT] [-j JOBS]
+#                               [-o OUT] [-- FIT_ARGS...]
 #
 # Budgets are drawn uniformly in log space between the input's smallest reachable size
 # (the E16 refusal names it; taken from one fit at 1 byte) and its file size, from a
@@ -11,7 +11,8 @@
 # one `atex fit` process, as a user would run it. Prints a summary line and writes the
 # rows (index, budget, bytes, seconds, verify) to OUT (default out/fit_random_budgets.csv).
 # -k FIRST fits only the budgets from index FIRST on (of the same N drawn): it finishes a
-# run that was cut short without changing which budgets the whole run covers.
+# run that was cut short without changing which budgets the whole run covers. -u UPPER draws
+# below UPPER bytes instead of the file size (e.g. the band just above the smallest size).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
@@ -21,18 +22,20 @@ atex=build/bin/atex
 input=samples/lego_adaptive_2MiB.atex
 jobs=1
 first=0
+upper=
 out=out/fit_random_budgets.csv
 while [ $# -gt 0 ]; do
   case $1 in
     -n) n=$2; shift 2 ;;
     -s) seed=$2; shift 2 ;;
     -k) first=$2; shift 2 ;;
+    -u) upper=$2; shift 2 ;;
     -a) atex=$2; shift 2 ;;
     -i) input=$2; shift 2 ;;
     -j) jobs=$2; shift 2 ;;
     -o) out=$2; shift 2 ;;
     --) shift; break ;;
-    -h|--help) sed -n 2,14p "$0"; exit 0 ;;
+    -h|--help) sed -n 2,15p "$0"; exit 0 ;;
     *) echo "unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -42,6 +45,7 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
 size=$(stat -c %s "$input")
+[ -n "$upper" ] && size=$upper
 # The smallest reachable size: the refusal of a 1-byte budget names it.
 set +e
 refusal=$("$atex" fit "$input" "$work/min.atex" --budget 1 "${fit_args[@]}" 2>&1 >/dev/null)
