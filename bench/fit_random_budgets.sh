@@ -28,7 +28,7 @@ while [ $# -gt 0 ]; do
   case $1 in
     -n) n=$2; shift 2 ;;
     -s) seed=$2; shift 2 ;;
-    -k) first=$2; shift 2 ;;
+    -k) first=$2; case $first in ''|*[!0-9]*) echo "-k takes an index" >&2; exit 2 ;; esac; shift 2 ;;
     -u) upper=$2; shift 2 ;;
     -a) atex=$2; shift 2 ;;
     -i) input=$2; shift 2 ;;
@@ -45,7 +45,15 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
 size=$(stat -c %s "$input")
-[ -n "$upper" ] && size=$upper
+if [ -n "$upper" ]; then
+  case $upper in ''|*[!0-9]*) echo "-u takes a whole number of bytes, not '$upper'" >&2; exit 2 ;; esac
+  size=$upper
+fi
+# -k finishes another run: its rows stay where they are, these go to a file of their own.
+if [ "$first" -gt 0 ] && [ -e "$out" ]; then
+  echo "$out exists: with -k, write the remaining rows to a new file (-o) beside the first run's" >&2
+  exit 2
+fi
 # The smallest reachable size: the refusal of a 1-byte budget names it.
 set +e
 refusal=$("$atex" fit "$input" "$work/min.atex" --budget 1 "${fit_args[@]}" 2>&1 >/dev/null)
@@ -54,6 +62,10 @@ minimum=$(printf '%s\n' "$refusal" | grep -o 'from this input, [0-9]*' | grep -o
 if [ -z "$minimum" ]; then
   echo "could not read the smallest reachable size from: $refusal" >&2
   exit 1
+fi
+if [ "$size" -le "$minimum" ]; then
+  echo "the upper end $size is not above the smallest reachable size $minimum" >&2
+  exit 2
 fi
 python3 - "$n" "$seed" "$minimum" "$size" > "$work/budgets" <<'EOF'
 import math, random, sys

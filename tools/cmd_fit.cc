@@ -78,7 +78,11 @@ int WriteAndPrint(const FitArgs& a, const std::vector<std::string>& budget_texts
     std::printf("wrote %s: %zu bytes (%.3f MiB) from %zu bytes; %zu of %s Gaussians kept\n", paths[0].c_str(),
                 result.bytes.size(), result.bytes.size() / 1048576.0, input_size,
                 result.asset.gaussians.size(), report["levers"]["gaussians"]["before"].dump().c_str());
-    if (result.smallest_fallback) std::printf("  %s\n", report["smallest_fallback"].get<std::string>().c_str());
+    if (result.smallest_fallback) {
+      std::printf("  the plan's moves ended at %llu bytes, above the budget: the output is the smallest asset of the "
+                  "levers, the size the budget check names\n",
+                  static_cast<unsigned long long>(result.plan_end_bytes));
+    }
     for (const fit::Move& m : result.moves) {
       std::printf("  %-45s -> %10llu bytes, proxy PSNR %.2f dB\n", fit::DescribeMove(m).c_str(),
                   static_cast<unsigned long long>(m.bytes_after),

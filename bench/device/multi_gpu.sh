@@ -73,7 +73,7 @@ if [ "$phase" = memory ]; then
       # shellcheck disable=SC2086,SC2163  # the settings are words (VAR=VALUE); the ranks inherit them
       [ -n "$settings" ] && export $settings
       run "$name" --gpus 0,1 --out "$out/$name.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=8
-    )
+    ) || { echo "variant $name failed: left out of memory.json"; continue; }
     names="$names $name"
   done
   python3 - "$out" $names <<'PY' | tee "$out/memory.json"

@@ -122,7 +122,7 @@ nlohmann::json FitReport(const Asset& input, uint64_t input_bytes, const fit::Fi
   r["moves"] = moves;
   if (fitted.smallest_fallback) {
     // The levers' smallest asset, never measured by the plan: no estimate to give.
-    r["smallest_fallback"] = true;
+    r["smallest_fallback"] = {{"plan_end_bytes", fitted.plan_end_bytes}, {"bytes", fitted.bytes.size()}};
   } else {
     const double d = fitted.moves.empty() ? plan.initial_distortion : fitted.moves.back().distortion_after;
     r["estimated_psnr_vs_input"] = d > 0 ? -10.0 * std::log10(d) : 99.0;
@@ -321,7 +321,9 @@ void RegisterFitTrain(py::module_& m) {
         "'default'; progress(dict(move, bytes, target_bytes, text)) is called after each accepted move;\n"
         "returning False, raising, or Ctrl-C stops the fit (atex.Error 'cancelled', or the callback's exception).\n"
         "The report has bytes, components, gaussians/sh_degree/texels before and after, the moves and\n"
-        "estimated_psnr_vs_input (proxy PSNR against the untrimmed renders).");
+        "estimated_psnr_vs_input (proxy PSNR against the untrimmed renders); when the plan ended above a\n"
+        "budget that is not below the smallest asset, that asset is the output, the report has\n"
+        "smallest_fallback (plan_end_bytes, bytes) instead of the estimate.");
   m.def("train", &Train, py::arg("dataset"), py::arg("config") = py::none(), py::kw_only(),
         py::arg("progress") = py::none(), py::arg("backend") = "auto", py::arg("stages") = "all",
         py::arg("init") = py::none(), py::arg("time_limit") = 0.0, py::arg("checkpoint_dir") = "",

@@ -67,7 +67,8 @@ def main():
         if dataset:
             psnr = atex.eval(fitted, dataset, backend=args.backend)["mean"]["psnr"]
         else:
-            psnr = report["estimated_psnr_vs_input"]
+            # Absent when the output is the levers' smallest asset (report["smallest_fallback"]).
+            psnr = report.get("estimated_psnr_vs_input", float("nan"))
         sizes.append(report["bytes"] / 2**20)
         psnrs.append(psnr)
         print(f"budget {budget / 2**20:.2f} MiB: {report['bytes']} bytes, {fitted.gaussian_count} Gaussians, "

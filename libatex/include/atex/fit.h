@@ -233,8 +233,10 @@ struct Fitted {
   std::vector<Move> moves;     // the plan's moves that were applied (the last one possibly partial)
   std::vector<uint32_t> kept;  // input indices of the Gaussians kept, ascending
   // True when even the whole plan did not fit and the output is the levers' smallest asset
-  // (the one MinimumBytes measures); `moves` is then empty.
+  // (the one MinimumBytes measures); `moves` is then empty and `plan_end_bytes` says where the
+  // plan's moves ended (how far the output jumped below them).
   bool smallest_fallback = false;
+  uint64_t plan_end_bytes = 0;
   double apply_seconds = 0;    // ApplyPlan's wall time
   double refill_seconds = 0;   // of which giving slack back below an indivisible last move
 };

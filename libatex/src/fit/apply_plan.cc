@@ -18,7 +18,8 @@ StatusOr<State> ApplyRange(State start, const Plan& plan, const std::vector<Move
       if (count_k == 0) continue;
       m.count = count_k;
     }
-    ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &start.asset, &start.write, &start.kept));
+    ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &start.asset, &start.write, &start.kept,
+                                   plan.min_grid_resolution));
   }
   return start;
 }
@@ -51,6 +52,7 @@ StatusOr<Fitted> SmallestFallback(const Asset& asset, const Plan& plan, const Wr
   out.write = smallest.write;
   out.kept = std::move(smallest.kept);
   out.smallest_fallback = true;
+  out.plan_end_bytes = reached;
   out.apply_seconds = whole.Lap();
   return out;
 }
@@ -80,7 +82,8 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
       return SmallestFallback(asset, plan, write, budget_bytes, reached);
     }
     for (size_t k = 0; k < j; ++k) {
-      ATEX_RETURN_IF_ERROR(ApplyMove(plan.moves[k], plan.prune_order, &state.asset, &state.write, &state.kept));
+      ATEX_RETURN_IF_ERROR(ApplyMove(plan.moves[k], plan.prune_order, &state.asset, &state.write, &state.kept,
+                                     plan.min_grid_resolution));
       out.moves.push_back(plan.moves[k]);
     }
     Move last = plan.moves[j];
@@ -92,7 +95,8 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
         State trial = state;
         Move m = last;
         m.count = mid;
-        ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &trial.asset, &trial.write, &trial.kept));
+        ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &trial.asset, &trial.write, &trial.kept,
+                                       plan.min_grid_resolution));
         ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, encode(trial));
         if (trial_bytes.size() <= budget_bytes) {
           hi = mid;
@@ -102,7 +106,8 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
       }
       last.count = hi;
     }
-    ATEX_RETURN_IF_ERROR(ApplyMove(last, plan.prune_order, &state.asset, &state.write, &state.kept));
+    ATEX_RETURN_IF_ERROR(ApplyMove(last, plan.prune_order, &state.asset, &state.write, &state.kept,
+                                   plan.min_grid_resolution));
     ATEX_ASSIGN_OR_RETURN(bytes, encode(state));
     last.bytes_after = bytes.size();
     out.moves.push_back(last);

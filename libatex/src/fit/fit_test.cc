@@ -131,6 +131,7 @@ TEST(Plan, BudgetsBetweenTheMinimumAndThePlansEndGetTheSmallestAsset) {
     auto fitted = ApplyPlan(f.asset, short_plan, f.write, budget);
     ASSERT_TRUE(fitted.ok()) << budget << ": " << fitted.status().ToString();
     EXPECT_TRUE(fitted->smallest_fallback);
+    EXPECT_EQ(fitted->plan_end_bytes, end);
     EXPECT_TRUE(fitted->moves.empty());
     EXPECT_EQ(fitted->bytes.size(), f.minimum);
     ASSERT_EQ(fitted->kept.size(), 1u) << "one Gaussian, the most important";

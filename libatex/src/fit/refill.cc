@@ -121,7 +121,8 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
   // the real ones. (Their distortion stays the plan's estimate: ApplyPlan does not render.)
   State replay = InitialState(asset, write);
   for (size_t i = 0; i < moves->size(); ++i) {
-    ATEX_RETURN_IF_ERROR(ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept));
+    ATEX_RETURN_IF_ERROR(ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept,
+                                   plan.min_grid_resolution));
     if (i >= *earliest_changed) {
       ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> step_bytes, EncodeAsset(replay.asset, replay.write, cache));
       (*moves)[i].bytes_after = step_bytes.size();

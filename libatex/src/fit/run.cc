@@ -14,9 +14,10 @@
 namespace atex::fit {
 namespace {
 
-constexpr const char* kSmallestFallbackNote =
-    "the plan's greedy search stopped above the budget (no single move saved bytes any more); the output is the "
-    "smallest asset of the levers, the one whose size the budget check names";
+// The report's note on an output that is the levers' smallest asset (Fitted::smallest_fallback).
+nlohmann::json SmallestFallbackJson(const Fitted& fitted) {
+  return {{"plan_end_bytes", fitted.plan_end_bytes}, {"bytes", fitted.bytes.size()}};
+}
 
 // Evenly spaced subset of `views` (all when count <= 0 or count >= size).
 std::vector<View> Spread(const std::vector<View>& views, int count) {
@@ -176,6 +177,16 @@ Status Run::Finetune(Fitted* result) {
   retrained.metadata = result->asset.metadata;
   const uint64_t target = o_.budgets.empty() ? ~uint64_t{0} : o_.budgets.front();
   auto refit = FitOnce(retrained, result->write, target, false);
+  const StatusCode code = refit.ok() ? StatusCode::kOk : refit.status().code();
+  if (code == StatusCode::kBudgetTooSmall || code == StatusCode::kOutOfRange) {
+    // Training moved the values, and with them the compressed size of the smallest asset: a
+    // budget at the input's minimum may be a few bytes short for the retrained one. The fit
+    // from before fine-tuning meets the budget; it is kept, and the report says why.
+    report_["finetune"] = {{"steps", o_.finetune}, {"seconds", tuned.textures_seconds},
+                           {"discarded", refit.status().ToString()}};
+    clock_.Done("finetune_and_refit");
+    return Status::Ok();
+  }
   if (!refit.ok()) return refit.status().WithContext("re-fit after fine-tuning");
   for (uint32_t& k : refit->kept) k = result->kept[k];
   report_["finetune"] = {{"steps", o_.finetune}, {"seconds", tuned.textures_seconds},
@@ -192,7 +203,7 @@ StatusOr<FitRunOutput> Run::Output(uint64_t budget, Fitted fitted) {
                 {"bytes", fitted.bytes.size()},
                 {"components", ComponentsToJson(fitted.bytes)},
                 {"levers", LeverSummary(input_, fitted.asset, fitted.write)}};
-  if (fitted.smallest_fallback) out.report["smallest_fallback"] = kSmallestFallbackNote;
+  if (fitted.smallest_fallback) out.report["smallest_fallback"] = SmallestFallbackJson(fitted);
   if (!eval_views_.empty()) {
     ATEX_ASSIGN_OR_RETURN(out.report["test"], Test(fitted.asset));
   }
@@ -241,6 +252,7 @@ StatusOr<FitRunReport> Run::Go(const std::vector<uint8_t>& input_bytes) {
   for (size_t k = 0; k < o_.budgets.size(); ++k) {
     if (k == main) continue;
     ATEX_ASSIGN_OR_RETURN(Fitted fitted, ApplyPlan(working_, shared_plan_, write_, o_.budgets[k]));
+    for (uint32_t& i : fitted.kept) i = kept_[i];  // back to input indices
     ATEX_ASSIGN_OR_RETURN(FitRunOutput out, Output(o_.budgets[k], std::move(fitted)));
     others.push_back(out.report);
     other_outputs.push_back(std::move(out));
@@ -257,7 +269,7 @@ StatusOr<FitRunReport> Run::Go(const std::vector<uint8_t>& input_bytes) {
   report_["levers"] = LeverSummary(input_, result.asset, result.write);
   if (!o_.budgets.empty() || quality_mode) report_["levers"]["allowed"] = LeverSetNames(o_.levers);
   report_["moves"] = moves;
-  if (result.smallest_fallback) report_["smallest_fallback"] = kSmallestFallbackNote;
+  if (result.smallest_fallback) report_["smallest_fallback"] = SmallestFallbackJson(result);
   if (!plan_timings_.empty()) report_["plan_timing"] = plan_timings_;
   if (last != nullptr) {
     report_["estimated_psnr_vs_input"] = last->distortion_after > 0 ? -10.0 * std::log10(last->distortion_after) : 99.0;
