@@ -210,14 +210,6 @@ StatusOr<WriteOptions> EncodingsOfFile(const uint8_t* data, size_t size, const W
 // minimum resolution with grid.
 StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, int min_grid_resolution = 4,
                                 LeverSet levers = kDefaultLevers);
-// That smallest asset itself, with its encodings and the input index of each Gaussian kept.
-struct SmallestAsset {
-  Asset asset;
-  WriteOptions write;
-  std::vector<uint32_t> kept;
-};
-StatusOr<SmallestAsset> BuildSmallestAsset(const Asset& asset, const WriteOptions& write, int min_grid_resolution = 4,
-                                           LeverSet levers = kDefaultLevers);
 // kBudgetTooSmall, naming MinimumBytes and the levers, when `budget_bytes` is below it; OK otherwise.
 Status CheckBudget(const Asset& asset, const WriteOptions& write, uint64_t budget_bytes, int min_grid_resolution = 4,
                    LeverSet levers = kDefaultLevers);

@@ -31,13 +31,23 @@ State InitialState(const Asset& asset, const WriteOptions& write) {
   return s;
 }
 
+// Fills `out` with the encoded output as a reader gets it (decoded from `bytes`).
+Status FinishOutput(std::vector<uint8_t> bytes, State state, Fitted* out) {
+  ReadOptions read;
+  read.read_stats = false;
+  ATEX_ASSIGN_OR_RETURN(out->asset, DecodeAsset(bytes.data(), bytes.size(), read));
+  out->bytes = std::move(bytes);
+  out->write = std::move(state.write);
+  out->kept = std::move(state.kept);
+  return Status::Ok();
+}
+
 // The greedy plan stopped above the budget (no single move saved bytes any more), but the
 // levers' smallest asset may still fit: then it is the output, as CheckBudget promised.
 StatusOr<Fitted> SmallestFallback(const Asset& asset, const Plan& plan, const WriteOptions& write,
                                   uint64_t budget_bytes, uint64_t reached) {
   Stopwatch whole;
-  ATEX_ASSIGN_OR_RETURN(SmallestAsset smallest,
-                        BuildSmallestAsset(asset, write, plan.min_grid_resolution, plan.levers));
+  ATEX_ASSIGN_OR_RETURN(State smallest, SmallestState(asset, write, plan.min_grid_resolution, plan.levers));
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(smallest.asset, smallest.write));
   if (bytes.size() > budget_bytes) {
     return MakeError(StatusCode::kOutOfRange, "the fit plan reaches ", reached, " bytes at best and the smallest asset of",
@@ -45,12 +55,7 @@ StatusOr<Fitted> SmallestFallback(const Asset& asset, const Plan& plan, const Wr
                      budget_bytes, " bytes");
   }
   Fitted out;
-  ReadOptions read;
-  read.read_stats = false;
-  ATEX_ASSIGN_OR_RETURN(out.asset, DecodeAsset(bytes.data(), bytes.size(), read));
-  out.bytes = std::move(bytes);
-  out.write = smallest.write;
-  out.kept = std::move(smallest.kept);
+  ATEX_RETURN_IF_ERROR(FinishOutput(std::move(bytes), std::move(smallest), &out));
   out.smallest_fallback = true;
   out.plan_end_bytes = reached;
   out.apply_seconds = whole.Lap();
@@ -59,6 +64,8 @@ StatusOr<Fitted> SmallestFallback(const Asset& asset, const Plan& plan, const Wr
 
 }  // namespace internal
 
+using internal::FinishOutput;
+using internal::InitialState;
 using internal::SmallestFallback;
 using internal::State;
 using internal::Stopwatch;
@@ -66,9 +73,7 @@ using internal::RefillSlack;
 
 StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes) {
   Stopwatch whole;
-  State state{asset, write, {}};
-  state.kept.resize(asset.gaussians.size());
-  std::iota(state.kept.begin(), state.kept.end(), 0u);
+  State state = InitialState(asset, write);
   Fitted out;
   // The searches below encode many states that differ from each other in a few chunks.
   EncodeCache cache;
@@ -124,12 +129,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
     return MakeError(StatusCode::kInternal, "fit: replaying the plan gave ", bytes.size(),
                      " bytes, above the budget of ", budget_bytes);
   }
-  ReadOptions read;
-  read.read_stats = false;
-  ATEX_ASSIGN_OR_RETURN(out.asset, DecodeAsset(bytes.data(), bytes.size(), read));
-  out.bytes = std::move(bytes);
-  out.write = state.write;
-  out.kept = std::move(state.kept);
+  ATEX_RETURN_IF_ERROR(FinishOutput(std::move(bytes), std::move(state), &out));
   out.apply_seconds = whole.Lap();
   return out;
 }

@@ -1,20 +1,20 @@
 // Budget arithmetic (fit.h): the smallest asset a lever set can reach, its size, and the
 // refusal of budgets below it.
 #include <limits>
-#include <numeric>
 
 #include "atex/fit.h"
 #include "levers.h"
+#include "plan_state.h"
 #include "texture_shrink.h"
 
 namespace atex::fit {
 
-StatusOr<SmallestAsset> BuildSmallestAsset(const Asset& asset, const WriteOptions& write, int min_grid_resolution,
-                                           LeverSet levers) {
-  SmallestAsset out{asset, write, {}};
+namespace internal {
+
+StatusOr<State> SmallestState(const Asset& asset, const WriteOptions& write, int min_grid_resolution,
+                              LeverSet levers) {
+  State out = InitialState(asset, write);
   Asset& smallest = out.asset;
-  out.kept.resize(asset.gaussians.size());
-  std::iota(out.kept.begin(), out.kept.end(), 0u);
   if (HasLever(levers, Lever::kPrune) && asset.gaussians.size() > 1) {
     // Seed 0, not the fit's seed: the size that CheckBudget promises must not depend on it.
     const std::vector<uint32_t> order = ImportanceOrder(asset, 0);
@@ -44,9 +44,11 @@ StatusOr<SmallestAsset> BuildSmallestAsset(const Asset& asset, const WriteOption
   return out;
 }
 
+}  // namespace internal
+
 StatusOr<uint64_t> MinimumBytes(const Asset& asset, const WriteOptions& write, int min_grid_resolution,
                                 LeverSet levers) {
-  ATEX_ASSIGN_OR_RETURN(SmallestAsset smallest, BuildSmallestAsset(asset, write, min_grid_resolution, levers));
+  ATEX_ASSIGN_OR_RETURN(internal::State smallest, internal::SmallestState(asset, write, min_grid_resolution, levers));
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(smallest.asset, smallest.write));
   return static_cast<uint64_t>(bytes.size());
 }

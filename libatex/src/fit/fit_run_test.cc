@@ -4,6 +4,7 @@
 #include "atex/container.h"
 #include "atex/fit_run.h"
 #include "container/synthetic_asset.h"
+#include "fit/fit_test_util.h"
 
 namespace atex::fit {
 namespace {
@@ -11,12 +12,7 @@ namespace {
 // With --keep-count, the plan works on the subset; every output's `kept` must still name input
 // Gaussians, the outputs of the other budgets of a list as well as the main one.
 TEST(FitRun, EveryOutputsKeptIndicesAreInputIndices) {
-  container::SyntheticAssetOptions o;
-  o.seed = 5;
-  o.gaussians = 300;
-  o.sh_degree = 1;
-  o.textures = container::SyntheticTextures::kNone;
-  const Asset asset = container::MakeSyntheticAsset(o);
+  const Asset asset = testing::SmallAsset(container::SyntheticTextures::kNone, 5, 300);
   auto bytes = EncodeAsset(asset, {});
   ASSERT_TRUE(bytes.ok()) << bytes.status().ToString();
   FitRunOptions options;

@@ -1,5 +1,5 @@
-// For the fitter's tests (fit_test.cc, texture_shrink_test.cc): a small synthetic asset with
-// SH degree 2, the SH head and the given textures.
+// For the fitter's tests (fit_test.cc, fit_levers_test.cc, fit_run_test.cc, texture_shrink_test.cc):
+// a small synthetic asset with SH degree 2, the SH head and the given textures.
 #pragma once
 
 #include <cstddef>

@@ -16,6 +16,7 @@
 namespace atex::fit {
 
 using internal::Candidate;
+using internal::InitialState;
 using internal::Measured;
 using internal::Measurer;
 using internal::State;
@@ -135,9 +136,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   plan.prune_order = ImportanceOrder(asset, options.seed);
   plan.levers = options.levers;
   plan.min_grid_resolution = options.min_grid_resolution;
-  State state{asset, options.write, {}};
-  state.kept.resize(asset.gaussians.size());
-  std::iota(state.kept.begin(), state.kept.end(), 0u);
+  State state = InitialState(asset, options.write);
   // Most candidates change one or two chunks of the current state; the others are
   // compressed once, not once per candidate.
   EncodeCache chunks;

@@ -33,6 +33,10 @@ struct State {
 
 State InitialState(const Asset& asset, const WriteOptions& write);
 
+// The smallest asset `levers` reach from `asset` (MinimumBytes encodes it): its encodings and
+// the input index of each Gaussian kept. ApplyPlan falls back to it below the plan's end.
+StatusOr<State> SmallestState(const Asset& asset, const WriteOptions& write, int min_grid_resolution, LeverSet levers);
+
 // The state after moves[begin, end) applied to `start`; moves[k] (if in range) with its count
 // replaced by `count_k` (0: skipped).
 StatusOr<State> ApplyRange(State start, const Plan& plan, const std::vector<Move>& moves, size_t begin, size_t end,
