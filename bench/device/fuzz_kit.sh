@@ -4,7 +4,8 @@
 # the binaries and every library they load that is not part of the C/C++ runtime, in one
 # archive for a device call's `carry`.
 #
-#   bench/device/fuzz_kit.sh pack [BUILD]   -> .fuzzkit/kit.tar.xz (git-ignored)
+#   bench/device/fuzz_kit.sh pack [BUILD [TARGETS]]   -> .fuzzkit/kit.tar.xz (git-ignored); TARGETS
+#                                        (comma-separated, e.g. fuzz_gltf,fuzz_pth) packs only those
 #   bench/device/fuzz_kit.sh unpack         -> .fuzzkit/build/fuzz/fuzz_* and .fuzzkit/lib, on the device
 #
 # On the device: LD_LIBRARY_PATH=.fuzzkit/lib bench/fuzz_campaign.sh --prebuilt --build .fuzzkit/build ...
@@ -15,9 +16,11 @@ cd "$(dirname "${BASH_SOURCE[0]}")/../.."
 case ${1:-} in
   pack)
     build=${2:-build-fuzz}
+    targets=${3:-}
     rm -rf .fuzzkit && mkdir -p .fuzzkit/stage/build/fuzz .fuzzkit/stage/lib
     for source in tests/fuzz/fuzz_*.cc; do
       name=$(basename "$source" .cc)
+      [ -z "$targets" ] || [[ ",$targets," == *",$name,"* ]] || continue
       [ -x "$build/fuzz/$name" ] || { echo "fuzz_kit.sh: $build/fuzz/$name not built" >&2; exit 1; }
       cp "$build/fuzz/$name" .fuzzkit/stage/build/fuzz/
     done

@@ -64,6 +64,14 @@ if [ "$phase" = memory ]; then
   # NCCL's per-channel, per-protocol buffers are what the 2-GPU runs added (BENCHMARKS.md, issue 25).
   variants=("default:" "buffsize_1mib:NCCL_BUFFSIZE=1048576" "channels_4:NCCL_MAX_NCHANNELS=4"
             "proto_simple:NCCL_PROTO=Simple" "ctas_4_simple_1mib:NCCL_MAX_CTAS=4 NCCL_PROTO=Simple NCCL_BUFFSIZE=1048576")
+  # MULTI_GPU_MEMORY_VARIANTS (names, comma-separated) keeps only those variants.
+  if [ -n "${MULTI_GPU_MEMORY_VARIANTS:-}" ]; then
+    kept=()
+    for v in "${variants[@]}"; do
+      [[ ",$MULTI_GPU_MEMORY_VARIANTS," == *",${v%%:*},"* ]] && kept+=("$v")
+    done
+    variants=("${kept[@]}")
+  fi
   run mem_1gpu --gpus 0 --out "$out/mem_1gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=4
   names="mem_1gpu"
   for v in "${variants[@]}"; do

@@ -93,7 +93,12 @@ StatusOr<train::StepResult> CudaBackend::Step(const train::StepRequest& request,
   }
   // Summed across the ranks before the regularisers, which depend on the parameters alone and are
   // added once on every rank.
-  if (world > 1) ATEX_RETURN_IF_ERROR(ReduceGradients(request, textured));
+  if (world > 1) {
+    ATEX_RETURN_IF_ERROR(ReduceGradients(request, textured));
+    // With --profile: the all-reduce's share of the step, waits for the slower ranks included
+    // (what overlapping it with the backward could at most save; BENCHMARKS.md, issue 25).
+    ATEX_RETURN_IF_ERROR(Mark("all_reduce"));
+  }
   if (request.apply_deformation &&
       (request.plane_tv > 0 || request.time_smoothness > 0 || request.time_l1 > 0)) {
     ATEX_RETURN_IF_ERROR(deform_->Regularizer(deform_layout_, grid_.value.data(),

@@ -110,10 +110,14 @@ void NormaliseColourAffines(std::vector<ColourAffine>* affines) {
     // With gains g_i and offsets o_i, the average camera maps x to ḡx + ō. Re-expressing the
     // model's colour space so that this is the identity: x' = ḡx + ō, hence
     // g_i x + o_i = (g_i/ḡ) x' + (o_i − g_i ō/ḡ).
+    // The re-expression can carry a camera past the bounds that every stored correction obeys
+    // (CameraColours::FromJson refuses it, and with it a checkpoint or another rank's copy:
+    // a 2-GPU Panoptic run stopped on an offset of -0.256), so it is clamped like a fit.
     for (ColourAffine& a : *affines) {
       const double g = a.gain[c] / gain;
-      a.offset[c] = static_cast<float>(a.offset[c] - g * offset);
-      a.gain[c] = static_cast<float>(g);
+      a.offset[c] = static_cast<float>(
+          std::clamp(a.offset[c] - g * offset, -double(kMaxColourOffset), double(kMaxColourOffset)));
+      a.gain[c] = static_cast<float>(std::clamp(g, double(kMinColourGain), double(kMaxColourGain)));
     }
   }
 }

@@ -108,6 +108,29 @@ TEST(ColourCorrection, NormalisingMakesTheAverageCameraTheIdentity) {
   }
 }
 
+// Fits are clamped to the bounds, but re-expressing them around their mean can carry a camera
+// past them (a 2-GPU Panoptic run stopped when the other rank read an offset of -0.256 back):
+// the normalised set must still be storable.
+TEST(ColourCorrection, NormalisedCorrectionsStayWithinTheStoredBounds) {
+  std::vector<ColourAffine> a = {{{1.0f, 2.0f, 1.0f}, {-kMaxColourOffset, 0.0f, 0.0f}},
+                                 {{1.0f, 2.0f, 1.0f}, {kMaxColourOffset, 0.0f, 0.0f}},
+                                 {{1.0f, 0.5f, 1.0f}, {kMaxColourOffset, 0.0f, 0.0f}}};
+  NormaliseColourAffines(&a);
+  nlohmann::json stored = nlohmann::json::object();
+  for (size_t i = 0; i < a.size(); ++i) {
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_GE(a[i].gain[c], kMinColourGain) << i << " " << c;
+      EXPECT_LE(a[i].gain[c], kMaxColourGain) << i << " " << c;
+      EXPECT_LE(std::abs(a[i].offset[c]), kMaxColourOffset) << i << " " << c;
+    }
+    stored[std::to_string(i)] = {{"gain", a[i].gain}, {"offset", a[i].offset}};
+  }
+  EXPECT_FLOAT_EQ(a[0].offset[0], -kMaxColourOffset);  // -0.333 before the clamp
+  EXPECT_FLOAT_EQ(a[2].gain[1], kMinColourGain);       // 0.333 before the clamp
+  auto read = CameraColours::FromJson(stored);
+  EXPECT_TRUE(read.ok()) << read.status().message();
+}
+
 TEST(ColourCorrection, CameraColoursSurviveJsonAndRefuseGarbage) {
   auto parsed = CameraColours::FromJson(nlohmann::json::parse(
       R"({"3": {"gain": [1.1, 0.9, 1.0], "offset": [0.01, -0.02, 0.0]},)"

@@ -56,7 +56,8 @@ StatusOr<ColourAffine> FitColourAffine(const std::vector<ImagePair>& pairs, doub
 
 // Fixes the gauge of a set of per-camera corrections: per channel, divides every gain by the
 // cameras' mean gain and subtracts the mean offset, so that the average camera is the identity
-// (the colour space the model renders test views in). Empty: nothing to do.
+// (the colour space the model renders test views in). The results are clamped to the bounds
+// above, like a fit's, so every one of them can be stored and read back. Empty: nothing to do.
 void NormaliseColourAffines(std::vector<ColourAffine>* affines);
 
 }  // namespace atex::train

@@ -1,0 +1,201 @@
+#!/usr/bin/env bash
+# Issue 25's targets on one machine of four GPUs, at the default Panoptic schedule, in two or
+# three device calls (a lent machine allows 10 minutes per command; the steps run in the
+# background under setsid and outlive a call while the machine stays warm, so each next `wait`
+# call must follow at once):
+#   bench/device/multi_gpu_session.sh start OUT   build (NCCL on), then start the steps
+#   bench/device/multi_gpu_session.sh wait OUT    follow them until they end or CALL_SECONDS pass
+# Steps (logs and rows in out/mgs/, a copy in OUT/results.tgz, OUT/progress.txt):
+#   1. nccl_data_parallel_test; the scaling runs of multi_gpu.sh (batch 4 per GPU, 300 fine steps,
+#      1, 2 and 4 GPUs, hull + volume init); the same 2- and 4-GPU runs with --profile, for the
+#      all-reduce's share of a step (what overlapping it with the backward could save at most)
+#   2. quality at the defaults (stage 1, batch 4 in total), two seeds on 1 GPU and on 2 GPUs, each
+#      evaluated; the seed-6666 runs checkpoint at fine step 7,000 of 14,000. Round one runs
+#      1 GPU seed 6666 (GPU 0), 1 GPU seed 1 (GPU 1) and 2 GPUs seed 6666 (GPUs 2,3) at once;
+#      round two 2 GPUs seed 1 (GPUs 0,1) beside the resumes on GPUs 2,3: the 2-GPU checkpoint
+#      resumed on 1 GPU, then the 1-GPU checkpoint resumed on 2 GPUs. Each process gets a quarter
+#      of the cores (OMP_NUM_THREADS), so that concurrent runs do not slow one another's stereo
+#      initialisation; the wall times compare runs made the same way.
+#   3. multi_gpu.sh's memory phase (1 GPU against 2 GPUs at NCCL's defaults and with 4 CTAs, the
+#      Simple protocol and 1 MiB buffers), alone on the machine
+#   4. with .oldsrc (an earlier commit, see common.sh's build_old): stage-2 uniform and adaptive
+#      models (1,200 steps) of the seed-6666 1-GPU model, then issue 23's timed fits,
+#      fit_panoptic.sh with the old and the new CLI, alone on the machine
+#   5. multi_gpu_summary.py: out/mgs/summary.json
+# With .fuzzkit/kit.tar.xz (bench/device/fuzz_kit.sh pack build-fuzz fuzz_gltf,fuzz_pth) and
+# .fuzzcorpus (their corpora), issue 24's fuzz campaign of those two targets runs niced on half
+# the cores during step 2 (it ends before step 4); OUT/corpus.tgz holds the corpus's new inputs.
+# The steps run the scripts of the source tree: leave bench/device unchanged between the calls.
+source "$(dirname "$0")/common.sh"
+phase=$1 out=$2
+s=out/mgs
+mkdir -p "$out" "$s"
+start=$(date +%s)
+CALL_SECONDS=${CALL_SECONDS:-540}
+export ATEX_GPU_BUILD=bg-nccl
+BUILD=bg-nccl
+atex=$BUILD/bin/atex
+
+prepare() {
+  [ -d out/devdata ] || cp -r .devdata out/devdata  # runs in flight read it
+  if [ -f .fuzzkit/kit.tar.xz ] && [ -d .fuzzcorpus ] && [ ! -d "$s/kit" ]; then
+    mkdir -p "$s/kit"
+    tar -C "$s/kit" -xJf .fuzzkit/kit.tar.xz
+    cp -r .fuzzcorpus "$s/corpus"
+    touch "$s/corpus.marker"
+  fi
+  [ -d .oldsrc ] && { build_old 16 > "$s/build_old.log" 2>&1 || echo "build-old failed" >> "$s/steps.log"; } &
+  BUILD_TREE_OPTIONS="-DATEX_NCCL=ON -DATEX_TESTS=ON -DATEX_BENCHMARKS=OFF" \
+    build_tree . "$BUILD" "$(nproc)" atex_cli nccl_data_parallel_test > "$s/build.log" 2>&1 ||
+    { echo "build failed" >> "$s/steps.log"; tail -20 "$s/build.log"; exit 1; }
+  wait
+}
+
+steps() {
+  set +e
+  local t0
+  t0=$(date +%s)
+  note() { echo "$(date +%T) [$(( $(date +%s) - t0 ))s] $*" >> "$s/steps.log"; }
+  export ATEX_SKIP_BUILD=1 ATEX_DEVDATA=out/devdata NCCL_NVLS_ENABLE=0
+  bb=out/devdata/panoptic_basketball
+  local threads=$(( $(nproc) / 4 ))
+  # train NAME ARGS...: NAME.train.json, NAME.log, NAME.wall, then NAME.eval.json. A run that
+  # finished and was evaluated is not run again, and one still in flight (started by an earlier
+  # `start`, whose orchestrator was stopped) is waited for: `start` again after a failed run or a
+  # fix redoes only what is missing.
+  train() {
+    local name=$1
+    shift
+    local t
+    if grep -q '"psnr"' "$s/$name.eval.json" 2>/dev/null; then return 0; fi
+    if grep -q '^rc=0$' "$s/$name.log" 2>/dev/null && [ -f "$s/$name.atex" ]; then  # trained, not evaluated
+      OMP_NUM_THREADS=$threads "$atex" eval "$s/$name.atex" --data "$bb" --json > "$s/$name.eval.json" 2> "$s/$name.eval.log"
+      note "$name done"
+      return 0
+    fi
+    if [ -f "$s/$name.log" ] && ! grep -q '^rc=' "$s/$name.log"; then
+      while ! grep -q "\] $name done$" "$s/steps.log"; do sleep 5; done
+      if grep -q '"psnr"' "$s/$name.eval.json" 2>/dev/null; then return 0; fi
+    fi
+    t=$(date +%s.%N)
+    OMP_NUM_THREADS=$threads "$atex" train --data "$bb" --stage 1 --force --json --out "$s/$name.atex" "$@" \
+      > "$s/$name.train.json" 2> "$s/$name.log"
+    echo "rc=$?" >> "$s/$name.log"
+    python3 -c "import time; print(time.time() - $t)" > "$s/$name.wall"
+    OMP_NUM_THREADS=$threads "$atex" eval "$s/$name.atex" --data "$bb" --json > "$s/$name.eval.json" 2> "$s/$name.eval.log"
+    note "$name done"
+  }
+  nvidia-smi --query-gpu=index,name,driver_version --format=csv,noheader > "$s/gpu.txt"
+  nvidia-smi topo -m > "$s/topology.txt" 2>&1
+  note "step 1: gradient test, scaling, profile"
+  if ! grep -q '"scale_4gpu"' "$s/scale/multi_gpu.json" 2>/dev/null; then
+    "$(find "$BUILD" -name nccl_data_parallel_test -type f -perm -u+x | head -1)" > "$s/nccl_test.log" 2>&1
+    note "nccl_data_parallel_test rc=$?"
+    MULTI_GPU_PHASE=scale MULTI_GPU_ARGS="--set stage1.init_method=auto" bench/device/multi_gpu.sh "$s/scale" \
+      > "$s/scale.log" 2>&1
+    note "scale rc=$?"
+  fi
+  local short=(--data "$bb" --stage 1 --force --json --profile --set stage1.init_method=auto
+               --set stage1.coarse_iterations=200 --set stage1.fine_iterations=300 --set eval_every=0)
+  local gpus
+  for gpus in 0,1 0,1,2,3; do
+    local n=$(( ${#gpus} / 2 + 1 ))
+    grep -q '"all_reduce_ms"' "$s/profile_${n}gpu.train.json" 2>/dev/null && continue
+    "$atex" train "${short[@]}" --gpus $gpus --set stage1.batch_size=$(( 4 * n )) --out "$s/profile_${n}gpu.atex" \
+      > "$s/profile_${n}gpu.train.json" 2> "$s/profile_${n}gpu.log"
+  done
+  # Issue 24's fuzzing of the two targets short of depth, niced, on half the cores while the GPUs train.
+  local fuzz_pid=
+  if [ -d "$s/kit" ] && ! grep -q "fuzz rc=" "$s/steps.log"; then
+    (
+      LD_LIBRARY_PATH=$PWD/$s/kit/lib nice -n 19 bench/fuzz_campaign.sh --prebuilt --build "$s/kit/build" \
+        --corpus "$s/corpus" --jobs "${FUZZ_JOBS:-32}" --seconds "${FUZZ_SECONDS:-300}" \
+        --runs "${FUZZ_RUNS:-7000000}" --targets fuzz_gltf,fuzz_pth --out "$s/fuzz" > "$s/fuzz.log" 2>&1
+      note "fuzz rc=$?"
+    ) &
+    fuzz_pid=$!
+  fi
+  note "step 2: quality round one"
+  local half=(--checkpoint-every 7000) pids=()
+  train q1_s6666 --gpus 0 --set seed=6666 --checkpoint-dir "$s/ckpt_q1_s6666" "${half[@]}" & pids+=($!)
+  train q1_s1 --gpus 1 --set seed=1 & pids+=($!)
+  train q2_s6666 --gpus 2,3 --set seed=6666 --checkpoint-dir "$s/ckpt_q2_s6666" "${half[@]}" & pids+=($!)
+  wait "${pids[@]}"
+  note "quality round two"
+  pids=()
+  train q2_s1 --gpus 0,1 --set seed=1 & pids+=($!)
+  (
+    train resume_2to1 --gpus 2 --resume "$s/ckpt_q2_s6666"
+    train resume_1to2 --gpus 2,3 --resume "$s/ckpt_q1_s6666"
+  ) & pids+=($!)
+  wait "${pids[@]}"
+  note "step 3: memory"
+  MULTI_GPU_MEMORY_VARIANTS=default,ctas_4_simple_1mib \
+    MULTI_GPU_PHASE=memory MULTI_GPU_ARGS="--set stage1.init_method=auto" bench/device/multi_gpu.sh "$s/memory" \
+    > "$s/memory.log" 2>&1
+  note "memory rc=$?"
+  # Issue 23's timed fits (fit_panoptic.sh, old and new CLI) on stage-2 models of the seed-6666
+  # 1-GPU model, alone on the machine once the fuzzing is over.
+  if [ -x build-old/bin/atex ] && [ -f "$s/q1_s6666.atex" ] && [ ! -s "$s/fit/fit_panoptic.jsonl" ]; then
+    note "step 4: stage-2 models and timed fits"
+    local models=out/fitp
+    mkdir -p "$models"
+    cp "$s/q1_s6666.atex" "$models/stage1.atex"
+    local stage2=(--data "$bb" --stage 2 --init "$models/stage1.atex" --set stage2.iterations=1200 --force --json)
+    local uniform_pid adaptive_pid
+    "$atex" train "${stage2[@]}" --gpus 0 --textures uniform --out "$models/uniform.atex" \
+      > "$models/uniform.train.json" 2> "$models/uniform.log" &
+    uniform_pid=$!
+    "$atex" train "${stage2[@]}" --gpus 1 --textures adaptive --set 'stage2.growth_steps=[120,240]' \
+      --out "$models/adaptive.atex" > "$models/adaptive.train.json" 2> "$models/adaptive.log" &
+    adaptive_pid=$!
+    wait "$uniform_pid" "$adaptive_pid"
+    [ -n "$fuzz_pid" ] && wait "$fuzz_pid"
+    bench/device/fit_panoptic.sh "$s/fit" "$models/uniform.atex" "$models/adaptive.atex" > "$s/fit_panoptic.log" 2>&1
+    note "fit_panoptic rc=$?"
+  fi
+  [ -n "$fuzz_pid" ] && wait "$fuzz_pid"
+  python3 bench/device/multi_gpu_summary.py "$s" > "$s/summary.json" 2> "$s/summary.log"
+  note "done"
+}
+
+snapshot() {
+  set +e
+  {
+    date +%T
+    cat "$s/steps.log" 2>/dev/null
+    nvidia-smi --query-gpu=index,utilization.gpu,memory.used --format=csv,noheader
+    uptime
+    cat "$s/summary.json" 2>/dev/null
+  } > "$out/progress.txt" 2>&1
+  tar czf "$out/results.tgz" --exclude='*.atex' --exclude='ckpt_*' --exclude="$s/kit" --exclude="$s/corpus" \
+    --exclude='artifacts' "$s" out/fitp/*.json out/fitp/*.log 2>/dev/null
+  if [ -f "$s/corpus.marker" ]; then
+    find "$s/corpus" -type f -newer "$s/corpus.marker" -print0 | tar czf "$out/corpus.tgz" --null -T - 2>/dev/null
+  fi
+}
+
+case $phase in
+  start)
+    # MGS_RESTART=1: stop a running orchestrator first (its runs in flight go on and are waited for).
+    if [ -n "${MGS_RESTART:-}" ] && [ -f "$s/steps.pid" ]; then kill "$(cat "$s/steps.pid")" 2>/dev/null; fi
+    [ -f "$s/steps.pid" ] && kill -0 "$(cat "$s/steps.pid")" 2>/dev/null || {
+      prepare
+      export -f steps
+      export s atex BUILD
+      setsid nohup bash -c 'source bench/device/common.sh; BUILD=bg-nccl; atex=$BUILD/bin/atex; steps' \
+        > "$s/orchestrator.log" 2>&1 &
+      echo $! > "$s/steps.pid"
+    }
+    ;&
+  wait)
+    while ! grep -q "\] done$" "$s/steps.log" 2>/dev/null; do
+      [ $(( $(date +%s) - start )) -ge "$CALL_SECONDS" ] && break
+      snapshot
+      sleep 15
+    done
+    snapshot
+    cat "$out/progress.txt"
+    ;;
+  *) echo "unknown phase $phase (start | wait)" >&2; exit 2 ;;
+esac
