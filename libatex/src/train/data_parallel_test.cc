@@ -131,6 +131,39 @@ TEST(DataParallel, TwoRanksWithHalfTheViewsTrainTheModelOfOneRankWithAll) {
   EXPECT_NEAR(two[0]->test.mean.psnr, one->test.mean.psnr, 0.05);
 }
 
+// Per-camera colour corrections are fitted on rank 0 and sent to the others as JSON (which a
+// 2-GPU Panoptic run once failed to read back): every rank must hold the same corrections, and
+// those of one rank with all the views.
+TEST(DataParallel, CameraColoursReachEveryRankAsOneRankFitsThem) {
+  auto data = MovingBall();
+  ASSERT_NE(data, nullptr);
+  TrainerOptions options;
+  options.config = SmallConfig();
+  options.config.camera_colour.enabled = true;
+  options.config.camera_colour.first_step = 10;
+  options.config.camera_colour.interval = 10;
+  auto one_backend = MakeCpuBackend();
+  auto one = Train(*data, *one_backend, options);
+  ASSERT_TRUE(one.ok()) << one.status().ToString();
+  auto two = TrainRanks(*data, options, 2);
+  for (const auto& r : two) ASSERT_TRUE(r.ok()) << r.status().ToString();
+  const nlohmann::json& reference = one->asset.metadata.extra["camera_colour"];
+  ASSERT_TRUE(reference.is_object());
+  ASSERT_GT(reference.size(), 0u) << "the test needs fitted cameras";
+  EXPECT_EQ(two[0]->asset.metadata.extra["camera_colour"], two[1]->asset.metadata.extra["camera_colour"]);
+  const nlohmann::json& fitted = two[0]->asset.metadata.extra["camera_colour"];
+  ASSERT_EQ(fitted.size(), reference.size());
+  for (auto it = reference.begin(); it != reference.end(); ++it) {
+    ASSERT_TRUE(fitted.contains(it.key())) << "camera " << it.key();
+    for (const char* part : {"gain", "offset"}) {
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(fitted[it.key()][part][c].get<double>(), it.value()[part][c].get<double>(), 1e-3)
+            << "camera " << it.key() << " " << part << " " << c;
+      }
+    }
+  }
+}
+
 float MaxAbs(const std::vector<float>& a) {
   float worst = 0;
   for (float x : a) worst = std::max(worst, std::abs(x));
