@@ -30,10 +30,13 @@ build_old() {  # JOBS
 }
 
 # The shortened Panoptic stage-1 model of the A/B scripts, DIR/stage1.atex (6,000 fine steps,
-# report DIR/stage1.train.json), trained on GPU unless DIR has it already.
-train_short_stage1() {  # DIR GPU
+# report DIR/stage1.train.json), trained on GPU unless DIR has it already; ARGS... are more
+# train options.
+train_short_stage1() {  # DIR GPU [ARGS...]
   [ -f "$1/stage1.atex" ] && return 0
-  mkdir -p "$1"
-  CUDA_VISIBLE_DEVICES=$2 "$atex" train --data "$bb" --stage 1 --out "$1/stage1.atex" --json \
-    --set stage1.fine_iterations=6000 > "$1/stage1.train.json" 2> "$1/stage1.log"
+  local dir=$1 gpu=$2
+  shift 2
+  mkdir -p "$dir"
+  CUDA_VISIBLE_DEVICES=$gpu "$atex" train --data "$bb" --stage 1 --out "$dir/stage1.atex" --json \
+    --set stage1.fine_iterations=6000 "$@" > "$dir/stage1.train.json" 2> "$dir/stage1.log"
 }

@@ -7,8 +7,9 @@
 #
 #   bench/device/fit_panoptic.sh OUT_DIR [UNIFORM.atex ADAPTIVE.atex | --train-only]
 #
-# Without models it trains short ones into out/fitp (--train-only: only that, and no old build) with the current tree (shortened stage 1 of common.sh,
-# then 1,200 stage-2 steps uniform and adaptive, growth at 120 and 240). Results:
+# Without models it trains short ones into out/fitp (--train-only: only that, and no old build)
+# with the current tree (shortened stage 1 of common.sh without fast-object Gaussians, which the
+# old CLI cannot read, then 1,200 stage-2 steps uniform and adaptive, growth at 120 and 240). Results:
 # OUT_DIR/fit_panoptic.jsonl (one row per fit) and a table on stdout.
 source "$(dirname "$0")/common.sh"
 out=$1
@@ -28,7 +29,9 @@ if [ $# -ge 3 ]; then
   uniform=$2
   adaptive=$3
 else
-  train_short_stage1 "$models" 0
+  # Without time-local fast-object Gaussians: .oldsrc's CLI (72791af) predates their chunk
+  # (GTWN) and refuses models that have them (E9), so the A/B needs models without.
+  train_short_stage1 "$models" 0 --set stage1.fast_objects.enabled=false
   for textures in uniform adaptive; do
     [ -f "$models/$textures.atex" ] && continue
     growth=()

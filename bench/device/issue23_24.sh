@@ -10,13 +10,13 @@
 #   1. (in the start call) the CUDA build (bg: CLI and tests) and .oldsrc's CLI (build-old); copies
 #      under out/ of the fuzz kit, the corpus, the data and the lego sample
 #   2. GPU: the CUDA tests (ctest -L cuda), then fit_panoptic.sh's short models
-#      meanwhile: bench/fit_random_budgets.sh -n 1000 on the lego sample (8 fits at a time, on
-#      the GPU: the fit's backend is auto), and the fuzz campaign on FUZZ_FIRST (fast targets, 6
-#      processes)
+#      meanwhile (RANDOM_BUDGETS=1): bench/fit_random_budgets.sh -n 1000 on the lego sample (8
+#      fits at a time, on the GPU: the fit's backend is auto), and (FUZZ=1) the fuzz campaign on
+#      FUZZ_FIRST (fast targets, 6 processes)
 #   3. fit_panoptic.sh on those models, old and new CLI, alone on the machine (timed); the
 #      stage-1 model fitted to 15 MiB (issue 21: small enough to come back from the device)
-#   4. GPU: gpu_memory_stress.sh; CPU meanwhile: the fuzz campaign on the other targets (14
-#      processes)
+#   4. GPU: gpu_memory_stress.sh; CPU meanwhile (FUZZ=1): the fuzz campaign on the other targets
+#      (14 processes)
 source "$(dirname "$0")/common.sh"
 phase=$1 out=$2
 s=out/s23
@@ -26,15 +26,21 @@ CALL_SECONDS=${CALL_SECONDS:-540}
 RUNS=${FUZZ_RUNS:-10000000}
 FUZZ_SECONDS=${FUZZ_SECONDS:-480}
 FUZZ_FIRST=${FUZZ_FIRST:-fuzz_image,fuzz_npz,fuzz_ply,fuzz_spz,fuzz_exr,fuzz_splat,fuzz_compressed_ply,fuzz_transforms_json}
+# The 1,000 random budgets and the fuzzing are done (BENCHMARKS.md, issues 23 and 24): off
+# unless asked for (RANDOM_BUDGETS=1, FUZZ=1 with .fuzzkit and the corpus in the tree).
+RANDOM_BUDGETS=${RANDOM_BUDGETS:-0}
+FUZZ=${FUZZ:-0}
 
 # Before the background starts (the next call replaces the source tree, its tracked files and
 # the carried folders): both builds, and copies under out/ of what the steps read.
 prepare() {
-  touch "$s/corpus.marker"
-  rm -rf "$s/kit" "$s/corpus"
-  mkdir -p "$s/kit"
-  tar -C "$s/kit" -xJf .fuzzkit/kit.tar.xz
-  cp -r tests/fuzz/corpus "$s/corpus"
+  if [ "$FUZZ" = 1 ]; then
+    touch "$s/corpus.marker"
+    rm -rf "$s/kit" "$s/corpus"
+    mkdir -p "$s/kit"
+    tar -C "$s/kit" -xJf .fuzzkit/kit.tar.xz
+    cp -r tests/fuzz/corpus "$s/corpus"
+  fi
   cp samples/lego_adaptive_2MiB.atex "$s/lego.atex"
   cp -r .devdata out/devdata
   (build_old 6 > "$s/build_old.log" 2>&1 || echo "build-old failed" >> "$s/steps.log") &
@@ -62,13 +68,17 @@ steps() {
     bench/device/fit_panoptic.sh "$s/fit" --train-only > "$s/train_models.log" 2>&1
     echo "rc=$?" >> "$s/train_models.log"
   ) &
-  (
-    OMP_NUM_THREADS=2 bench/fit_random_budgets.sh -n 1000 -s 3 -a "$atex" -i "$s/lego.atex" -j 8 \
-      -o "$s/fit_random_budgets_lego.csv" > "$s/random_budgets.log" 2>&1
-    note "random budgets rc=$?"
-  ) &
-  fuzz fuzz1 6 "$FUZZ_FIRST"
-  note "fuzz first done (rc=$?)"
+  if [ "$RANDOM_BUDGETS" = 1 ]; then
+    (
+      OMP_NUM_THREADS=2 bench/fit_random_budgets.sh -n 1000 -s 3 -a "$atex" -i "$s/lego.atex" -j 8 \
+        -o "$s/fit_random_budgets_lego.csv" > "$s/random_budgets.log" 2>&1
+      note "random budgets rc=$?"
+    ) &
+  fi
+  if [ "$FUZZ" = 1 ]; then
+    fuzz fuzz1 6 "$FUZZ_FIRST"
+    note "fuzz first done (rc=$?)"
+  fi
   wait
   note "step 3: timed fits"
   bench/device/fit_panoptic.sh "$s/fit" out/fitp/uniform.atex out/fitp/adaptive.atex > "$s/fit_panoptic.log" 2>&1
@@ -79,10 +89,12 @@ steps() {
   "$atex" eval out/fitp/stage1.atex --data "$bb" --json > "$s/stage1.eval.json" 2>&1
   note "step 4: stress | fuzz rest, random budgets"
   (bench/device/gpu_memory_stress.sh > "$s/gpu_memory_stress.log" 2>&1; echo "rc=$?" >> "$s/gpu_memory_stress.log") &
-  local rest
-  rest=$(ls "$s/kit/build/fuzz" | grep -vxF -f <(tr , '\n' <<<"$FUZZ_FIRST") | paste -sd,)
-  fuzz fuzz2 14 "$rest"
-  note "fuzz rest done (rc=$?)"
+  if [ "$FUZZ" = 1 ]; then
+    local rest
+    rest=$(ls "$s/kit/build/fuzz" | grep -vxF -f <(tr , '\n' <<<"$FUZZ_FIRST") | paste -sd,)
+    fuzz fuzz2 14 "$rest"
+    note "fuzz rest done (rc=$?)"
+  fi
   wait
   note "done"
 }
@@ -111,13 +123,13 @@ case $phase in
     [ -f "$s/steps.pid" ] && kill -0 "$(cat "$s/steps.pid")" 2>/dev/null || {
       prepare
       export -f steps
-      export RUNS FUZZ_SECONDS FUZZ_FIRST
+      export RUNS FUZZ_SECONDS FUZZ_FIRST FUZZ RANDOM_BUDGETS
       setsid nohup bash -c 'source bench/device/common.sh; s=out/s23; steps' > "$s/orchestrator.log" 2>&1 &
       echo $! > "$s/steps.pid"
     }
     ;&
   wait)
-    while ! grep -q "done$" "$s/steps.log" 2>/dev/null; do
+    while ! grep -q "\] done$" "$s/steps.log" 2>/dev/null; do
       [ $(( $(date +%s) - start )) -ge "$CALL_SECONDS" ] && break
       snapshot
       sleep 15
