@@ -12,7 +12,7 @@ namespace atex::cli {
 Status LoadAssetIntoBackend(const std::string& path, train::Backend* backend, Asset* asset,
                             train::RenderRequest* request) {
   ATEX_ASSIGN_OR_RETURN(*asset, ReadAssetFile(path));
-  ATEX_RETURN_IF_ERROR(backend->Load(train::StateFromAsset(*asset)).WithContext(path));
+  ATEX_RETURN_IF_ERROR(backend->Load(train::RenderStateFromAsset(*asset)).WithContext(path));
   *request = train::RenderRequestFor(*asset);
   return Status::Ok();
 }

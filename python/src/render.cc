@@ -48,7 +48,7 @@ StatusOr<AssetHolder::LoadedBackend*> BackendFor(AssetHolder& holder, const std:
   auto loaded = std::make_unique<AssetHolder::LoadedBackend>();
   loaded->name = name;
   ATEX_ASSIGN_OR_RETURN(loaded->backend, MakeBackend(name, &loaded->description));
-  ATEX_RETURN_IF_ERROR(loaded->backend->Load(train::StateFromAsset(holder.asset)));
+  ATEX_RETURN_IF_ERROR(loaded->backend->Load(train::RenderStateFromAsset(holder.asset)));
   holder.backends.push_back(std::move(loaded));
   return holder.backends.back().get();
 }

@@ -123,7 +123,7 @@ ProbeRenderer::~ProbeRenderer() = default;
 
 StatusOr<std::vector<Image>> ProbeRenderer::RenderCameras(const Asset& asset, const std::vector<Camera>& cameras) {
   if (cpu_) return cpu_->Render(asset, cameras, train::RenderRequestFor(asset));
-  ATEX_RETURN_IF_ERROR(backend_->Load(train::StateFromAsset(asset)));
+  ATEX_RETURN_IF_ERROR(backend_->Load(train::RenderStateFromAsset(asset)));
   const train::RenderRequest request = train::RenderRequestFor(asset);
   std::vector<Image> images;
   images.reserve(cameras.size());

@@ -29,7 +29,7 @@ std::vector<View> Spread(const std::vector<View>& views, int count) {
 
 StatusOr<train::EvalResult> EvaluateAsset(const Dataset& dataset, train::Backend& backend, const Asset& asset,
                                           const std::vector<View>& views) {
-  ATEX_RETURN_IF_ERROR(backend.Load(train::StateFromAsset(asset)));
+  ATEX_RETURN_IF_ERROR(backend.Load(train::RenderStateFromAsset(asset)));
   return train::Evaluate(dataset, backend, views, train::RenderRequestFor(asset));
 }
 

@@ -62,6 +62,14 @@ ModelState StateFromAsset(const Asset& asset) {
   return state;
 }
 
+ModelState RenderStateFromAsset(const Asset& asset) {
+  ModelState state;
+  state.gaussians = asset.gaussians;
+  state.textures = asset.textures;
+  state.deformation = asset.deformation;
+  return state;
+}
+
 Asset AssetFromState(const ModelState& state, const Metadata& metadata) {
   Asset asset;
   asset.gaussians = state.gaussians;

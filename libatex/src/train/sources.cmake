@@ -23,7 +23,8 @@ list(APPEND ATEX_LIB_SOURCES
 function(atex_train_tests)
   set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
   atex_add_test(NAME train_test LIBS atex SOURCES
-    ${dir}/checkpoint_test.cc ${dir}/config_test.cc ${dir}/config_check_test.cc ${dir}/densify_test.cc
+    ${dir}/checkpoint_test.cc ${dir}/model_state_test.cc ${dir}/config_test.cc ${dir}/config_check_test.cc
+    ${dir}/densify_test.cc
     ${dir}/schedule_test.cc ${dir}/texture_growth_test.cc
     ${dir}/colour_correction_test.cc ${dir}/camera_colours_test.cc ${PROJECT_SOURCE_DIR}/libatex/src/render/render_test_util.cc)
   # Collectives (ranks as threads) and the data-parallel loop on a synthetic scene: two ranks
