@@ -30,6 +30,11 @@ case ${1:-} in
         *) cp -L "$lib" .fuzzkit/stage/lib/ ;;
       esac
     done
+    packed=$(find .fuzzkit/stage/build/fuzz -type f | wc -l)
+    if [ -n "$targets" ] && [ "$packed" -ne "$(tr , '\n' <<<"$targets" | grep -c .)" ]; then
+      echo "fuzz_kit.sh: $targets names a target that tests/fuzz does not have ($packed packed)" >&2
+      exit 1
+    fi
     tar -C .fuzzkit/stage -cJf .fuzzkit/kit.tar.xz build lib
     rm -rf .fuzzkit/stage
     ls -la .fuzzkit/kit.tar.xz

@@ -70,6 +70,8 @@ if [ "$phase" = memory ]; then
     for v in "${variants[@]}"; do
       [[ ",$MULTI_GPU_MEMORY_VARIANTS," == *",${v%%:*},"* ]] && kept+=("$v")
     done
+    [ "${#kept[@]}" -eq "$(tr , '\n' <<<"$MULTI_GPU_MEMORY_VARIANTS" | grep -c .)" ] ||
+      { echo "MULTI_GPU_MEMORY_VARIANTS=$MULTI_GPU_MEMORY_VARIANTS names a variant not in: ${variants[*]%%:*}" >&2; exit 2; }
     variants=("${kept[@]}")
   fi
   run mem_1gpu --gpus 0 --out "$out/mem_1gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=4

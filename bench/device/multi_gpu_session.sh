@@ -18,9 +18,8 @@
 #      initialisation; the wall times compare runs made the same way.
 #   3. multi_gpu.sh's memory phase (1 GPU against 2 GPUs at NCCL's defaults and with 4 CTAs, the
 #      Simple protocol and 1 MiB buffers), alone on the machine
-#   4. with .oldsrc (an earlier commit, see common.sh's build_old): stage-2 uniform and adaptive
-#      models (1,200 steps) of the seed-6666 1-GPU model, then issue 23's timed fits,
-#      fit_panoptic.sh with the old and the new CLI, alone on the machine
+#   4. with .oldsrc (an earlier commit, see common.sh's build_old): issue 23's timed fits,
+#      fit_panoptic.sh (its own short models, then the old and the new CLI), alone on the machine
 #   5. multi_gpu_summary.py: out/mgs/summary.json
 # With .fuzzkit/kit.tar.xz (bench/device/fuzz_kit.sh pack build-fuzz fuzz_gltf,fuzz_pth) and
 # .fuzzcorpus (their corpora), issue 24's fuzz campaign of those two targets runs niced on half
@@ -56,34 +55,46 @@ steps() {
   local t0
   t0=$(date +%s)
   note() { echo "$(date +%T) [$(( $(date +%s) - t0 ))s] $*" >> "$s/steps.log"; }
+  note "orchestrator started"
   export ATEX_SKIP_BUILD=1 ATEX_DEVDATA=out/devdata NCCL_NVLS_ENABLE=0
   bb=out/devdata/panoptic_basketball
   local threads=$(( $(nproc) / 4 ))
-  # train NAME ARGS...: NAME.train.json, NAME.log, NAME.wall, then NAME.eval.json. A run that
-  # finished and was evaluated is not run again, and one still in flight (started by an earlier
-  # `start`, whose orchestrator was stopped) is waited for: `start` again after a failed run or a
-  # fix redoes only what is missing.
+  # train NAME ARGS...: NAME.train.json, NAME.log, NAME.wall, then NAME.eval.json, evaluated on
+  # the run's first GPU (not on GPU 0, which another run may be training on). A run that
+  # finished and was evaluated is not run again, one that trained but was not evaluated is only
+  # evaluated, and one still in flight (started by an earlier `start`, whose orchestrator was
+  # stopped) is waited for: `start` again after a failed run or a fix redoes only what is missing.
   train() {
     local name=$1
     shift
-    local t
-    if grep -q '"psnr"' "$s/$name.eval.json" 2>/dev/null; then return 0; fi
-    if grep -q '^rc=0$' "$s/$name.log" 2>/dev/null && [ -f "$s/$name.atex" ]; then  # trained, not evaluated
-      OMP_NUM_THREADS=$threads "$atex" eval "$s/$name.atex" --data "$bb" --json > "$s/$name.eval.json" 2> "$s/$name.eval.log"
+    local t gpu=0 previous=
+    for arg in "$@"; do
+      [ "$previous" = --gpus ] && gpu=${arg%%,*}
+      previous=$arg
+    done
+    evaluate() {
+      CUDA_VISIBLE_DEVICES=$gpu OMP_NUM_THREADS=$threads "$atex" eval "$s/$name.atex" --data "$bb" --json \
+        > "$s/$name.eval.json" 2> "$s/$name.eval.log"
       note "$name done"
-      return 0
-    fi
+    }
+    if grep -q '"psnr"' "$s/$name.eval.json" 2>/dev/null; then return 0; fi
     if [ -f "$s/$name.log" ] && ! grep -q '^rc=' "$s/$name.log"; then
-      while ! grep -q "\] $name done$" "$s/steps.log"; do sleep 5; done
-      if grep -q '"psnr"' "$s/$name.eval.json" 2>/dev/null; then return 0; fi
+      while ! grep -q '^rc=' "$s/$name.log"; do sleep 5; done  # in flight: its own wrapper evaluates it
+      for _ in $(seq 60); do
+        grep -q '"psnr"' "$s/$name.eval.json" 2>/dev/null && return 0
+        sleep 5
+      done
+    fi
+    if grep -q '^rc=0$' "$s/$name.log" 2>/dev/null && [ -f "$s/$name.atex" ]; then  # trained, not evaluated
+      evaluate
+      return 0
     fi
     t=$(date +%s.%N)
     OMP_NUM_THREADS=$threads "$atex" train --data "$bb" --stage 1 --force --json --out "$s/$name.atex" "$@" \
       > "$s/$name.train.json" 2> "$s/$name.log"
     echo "rc=$?" >> "$s/$name.log"
     python3 -c "import time; print(time.time() - $t)" > "$s/$name.wall"
-    OMP_NUM_THREADS=$threads "$atex" eval "$s/$name.atex" --data "$bb" --json > "$s/$name.eval.json" 2> "$s/$name.eval.log"
-    note "$name done"
+    evaluate
   }
   nvidia-smi --query-gpu=index,name,driver_version --format=csv,noheader > "$s/gpu.txt"
   nvidia-smi topo -m > "$s/topology.txt" 2>&1
@@ -106,7 +117,7 @@ steps() {
   done
   # Issue 24's fuzzing of the two targets short of depth, niced, on half the cores while the GPUs train.
   local fuzz_pid=
-  if [ -d "$s/kit" ] && ! grep -q "fuzz rc=" "$s/steps.log"; then
+  if [ -d "$s/kit" ] && ! grep -q "fuzz rc=" "$s/steps.log" && ! pgrep -f "[f]uzz_campaign.sh" > /dev/null; then
     (
       LD_LIBRARY_PATH=$PWD/$s/kit/lib nice -n 19 bench/fuzz_campaign.sh --prebuilt --build "$s/kit/build" \
         --corpus "$s/corpus" --jobs "${FUZZ_JOBS:-32}" --seconds "${FUZZ_SECONDS:-300}" \
@@ -134,24 +145,14 @@ steps() {
     MULTI_GPU_PHASE=memory MULTI_GPU_ARGS="--set stage1.init_method=auto" bench/device/multi_gpu.sh "$s/memory" \
     > "$s/memory.log" 2>&1
   note "memory rc=$?"
-  # Issue 23's timed fits (fit_panoptic.sh, old and new CLI) on stage-2 models of the seed-6666
-  # 1-GPU model, alone on the machine once the fuzzing is over.
-  if [ -x build-old/bin/atex ] && [ -f "$s/q1_s6666.atex" ] && [ ! -s "$s/fit/fit_panoptic.jsonl" ]; then
-    note "step 4: stage-2 models and timed fits"
-    local models=out/fitp
-    mkdir -p "$models"
-    cp "$s/q1_s6666.atex" "$models/stage1.atex"
-    local stage2=(--data "$bb" --stage 2 --init "$models/stage1.atex" --set stage2.iterations=1200 --force --json)
-    local uniform_pid adaptive_pid
-    "$atex" train "${stage2[@]}" --gpus 0 --textures uniform --out "$models/uniform.atex" \
-      > "$models/uniform.train.json" 2> "$models/uniform.log" &
-    uniform_pid=$!
-    "$atex" train "${stage2[@]}" --gpus 1 --textures adaptive --set 'stage2.growth_steps=[120,240]' \
-      --out "$models/adaptive.atex" > "$models/adaptive.train.json" 2> "$models/adaptive.log" &
-    adaptive_pid=$!
-    wait "$uniform_pid" "$adaptive_pid"
+  # Issue 23's timed fits: fit_panoptic.sh trains its own short models (without fast-object
+  # Gaussians, which the old CLI cannot read; the 1-GPU runs above have them), then fits them
+  # with the old and the new CLI, alone on the machine once the fuzzing is over.
+  if [ -x build-old/bin/atex ] && [ ! -s "$s/fit/fit_panoptic.jsonl" ]; then
+    note "step 4: timed fits"
     [ -n "$fuzz_pid" ] && wait "$fuzz_pid"
-    bench/device/fit_panoptic.sh "$s/fit" "$models/uniform.atex" "$models/adaptive.atex" > "$s/fit_panoptic.log" 2>&1
+    rm -rf out/fitp  # models of another script or an earlier attempt: not reused
+    bench/device/fit_panoptic.sh "$s/fit" > "$s/fit_panoptic.log" 2>&1
     note "fit_panoptic rc=$?"
   fi
   [ -n "$fuzz_pid" ] && wait "$fuzz_pid"
@@ -178,7 +179,10 @@ snapshot() {
 case $phase in
   start)
     # MGS_RESTART=1: stop a running orchestrator first (its runs in flight go on and are waited for).
-    if [ -n "${MGS_RESTART:-}" ] && [ -f "$s/steps.pid" ]; then kill "$(cat "$s/steps.pid")" 2>/dev/null; fi
+    if [ -n "${MGS_RESTART:-}" ] && [ -f "$s/steps.pid" ]; then
+      kill "$(cat "$s/steps.pid")" 2>/dev/null || true
+      sleep 1
+    fi
     [ -f "$s/steps.pid" ] && kill -0 "$(cat "$s/steps.pid")" 2>/dev/null || {
       prepare
       export -f steps
@@ -189,7 +193,9 @@ case $phase in
     }
     ;&
   wait)
-    while ! grep -q "\] done$" "$s/steps.log" 2>/dev/null; do
+    # The last orchestrator's own "done" (the log keeps earlier attempts' lines).
+    finished() { tac "$s/steps.log" 2>/dev/null | sed '/\] orchestrator started$/q' | grep -q "\] done$"; }
+    while ! finished; do
       [ $(( $(date +%s) - start )) -ge "$CALL_SECONDS" ] && break
       snapshot
       sleep 15

@@ -10,8 +10,8 @@
 //
 // so the model keeps one colour space, that of the rig's average camera. The corrections are
 // fitted in closed form from the current model (FitColourAffine, trimmed least squares over the
-// camera's pixels), then normalised over the cameras (mean gain 1, mean offset 0 per channel),
-// alternating with training (TrainConfig::camera_colour). Test views render without any
+// camera's pixels), then normalised over the cameras (mean gain 1, mean offset 0 per channel,
+// up to the bounds below, which the normalised values keep too), alternating with training (TrainConfig::camera_colour). Test views render without any
 // correction: a held-out camera's response is unknown, the average is the best guess.
 #pragma once
 
@@ -57,7 +57,9 @@ StatusOr<ColourAffine> FitColourAffine(const std::vector<ImagePair>& pairs, doub
 // Fixes the gauge of a set of per-camera corrections: per channel, divides every gain by the
 // cameras' mean gain and subtracts the mean offset, so that the average camera is the identity
 // (the colour space the model renders test views in). The results are clamped to the bounds
-// above, like a fit's, so every one of them can be stored and read back. Empty: nothing to do.
+// above, like a fit's, so every one of them can be stored and read back; a clamped camera leaves
+// the mean slightly off the identity (its offset is re-expressed with its unclamped gain).
+// Empty: nothing to do.
 void NormaliseColourAffines(std::vector<ColourAffine>* affines);
 
 }  // namespace atex::train

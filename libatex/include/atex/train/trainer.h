@@ -115,9 +115,9 @@ double CameraExtent(const std::vector<View>& views);
 // Model state <-> asset (canonical parameters only; moments reset).
 ModelState StateFromAsset(const Asset& asset);
 // The parameters alone, with empty moments, for a Backend::Load that only renders: the backend
-// starts empty moments at zero itself (Backend::Load's contract), where StateFromAsset's
-// zero-filled host copies double what is copied and uploaded (the fitter loads every candidate
-// it measures on a GPU: two extra copies of 150 MB per measurement on a Panoptic model).
+// starts empty moments at zero itself (Backend::Load's contract), where StateFromAsset's two
+// zero-filled host copies triple what is copied and uploaded (the fitter loads every candidate
+// it measures on a GPU: about 330 MB of zeros per measurement on a Panoptic-sized model).
 ModelState RenderStateFromAsset(const Asset& asset);
 Asset AssetFromState(const ModelState& state, const Metadata& metadata);
 // A request that renders everything `asset` has: its deformation, textures, full SH
