@@ -50,13 +50,7 @@ class CpuBackend final : public Backend {
 
   Status Load(const ModelState& state) override {
     state_ = state;
-    const bool moments_ok = state_.m_gaussians.size() == state_.gaussians.size() &&
-                            state_.v_gaussians.size() == state_.gaussians.size();
-    if (!moments_ok) {
-      const auto steps = state_.adam_steps;
-      ResetMoments(&state_);
-      state_.adam_steps = steps;
-    }
+    FillMissingMoments(&state_);  // per group: empty moments start at zero
     if (state_.textures) state_.textures->RebuildOffsets();
     return ResetStats(kStatsAll);
   }

@@ -53,6 +53,31 @@ double CameraExtent(const std::vector<View>& views) {
   return radius > 0 ? 1.1 * radius : 1.0;
 }
 
+void FillMissingMoments(ModelState* state) {
+  const Gaussians& g = state->gaussians;
+  const size_t n = g.size();
+  if (state->m_gaussians.size() != n || state->v_gaussians.size() != n ||
+      state->m_gaussians.sh.size() != g.sh.size() || state->v_gaussians.sh.size() != g.sh.size()) {
+    for (Gaussians* m : {&state->m_gaussians, &state->v_gaussians}) {
+      *m = Gaussians();
+      m->sh_degree = g.sh_degree;
+      m->Resize(n);
+    }
+  }
+  const size_t texels = state->textures ? state->textures->texels.size() : 0;
+  if (state->m_texels.size() != texels || state->v_texels.size() != texels) {
+    state->m_texels.assign(texels, 0.0f);
+    state->v_texels.assign(texels, 0.0f);
+  }
+  if (!state->deformation) {
+    state->m_deformation.reset();
+    state->v_deformation.reset();
+  } else if (!state->m_deformation || !state->v_deformation) {
+    state->m_deformation = ZerosLike(*state->deformation);
+    state->v_deformation = ZerosLike(*state->deformation);
+  }
+}
+
 ModelState StateFromAsset(const Asset& asset) {
   ModelState state;
   state.gaussians = asset.gaussians;

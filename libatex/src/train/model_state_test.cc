@@ -39,5 +39,32 @@ TEST(ModelState, ARenderStateCarriesTheParametersWithoutMoments) {
   EXPECT_EQ(saved.v_texels, std::vector<float>(asset.textures->texels.size(), 0.0f));
 }
 
+// Each group's moments are filled independently: texel and deformation moments missing beside
+// present Gaussian ones are zeroed (the CPU backend once checked the Gaussians' alone and left
+// the others empty), and present ones are kept.
+TEST(ModelState, MissingMomentsAreFilledPerGroup) {
+  container::SyntheticAssetOptions o;
+  o.gaussians = 30;
+  o.stats = false;
+  const Asset asset = container::MakeSyntheticAsset(o);
+  ModelState state = StateFromAsset(asset);
+  for (float& x : state.m_gaussians.positions) x = 0.5f;
+  state.m_texels.clear();
+  state.v_deformation.reset();
+  FillMissingMoments(&state);
+  EXPECT_EQ(state.m_gaussians.positions, std::vector<float>(asset.gaussians.positions.size(), 0.5f));
+  EXPECT_EQ(state.m_texels, std::vector<float>(asset.textures->texels.size(), 0.0f));
+  ASSERT_TRUE(state.m_deformation && state.v_deformation);
+  EXPECT_EQ(state.v_deformation->planes.size(), asset.deformation->planes.size());
+
+  auto backend = MakeCpuBackend();
+  state.m_texels.clear();
+  ASSERT_TRUE(backend->Load(state).ok());
+  ModelState saved;
+  ASSERT_TRUE(backend->Save(&saved).ok());
+  EXPECT_EQ(saved.m_gaussians.positions, state.m_gaussians.positions);  // kept, not reset
+  EXPECT_EQ(saved.m_texels.size(), asset.textures->texels.size());
+}
+
 }  // namespace
 }  // namespace atex::train

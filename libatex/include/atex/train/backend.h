@@ -60,6 +60,9 @@ struct ModelState {
 };
 // Zero moments shaped like the parameters (for a fresh start or new groups).
 void ResetMoments(ModelState* state);
+// Zero moments for each group (Gaussians, texels, deformation) whose moments are not shaped
+// like its parameters, keeping the others: what Backend::Load does with empty moments.
+void FillMissingMoments(ModelState* state);
 
 struct AdamSettings {
   double beta1 = 0.9;
