@@ -50,9 +50,9 @@ StatusOr<Fitted> SmallestFallback(const Asset& asset, const Plan& plan, const Wr
   ATEX_ASSIGN_OR_RETURN(State smallest, SmallestState(asset, write, plan.min_grid_resolution, plan.levers));
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeAsset(smallest.asset, smallest.write));
   if (bytes.size() > budget_bytes) {
-    return MakeError(StatusCode::kOutOfRange, "the fit plan reaches ", reached, " bytes at best and the smallest asset of",
-                     " the levers ", LeverSetNames(plan.levers), " is ", bytes.size(), " bytes, both above the budget of ",
-                     budget_bytes, " bytes");
+    return MakeError(StatusCode::kOutOfRange, "the fit plan reaches ", reached,
+                     " bytes at best and the smallest asset of the levers ", LeverSetNames(plan.levers), " is ",
+                     bytes.size(), " bytes, both above the budget of ", budget_bytes, " bytes");
   }
   Fitted out;
   ATEX_RETURN_IF_ERROR(FinishOutput(std::move(bytes), std::move(smallest), &out));

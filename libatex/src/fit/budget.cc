@@ -18,8 +18,8 @@ StatusOr<State> SmallestState(const Asset& asset, const WriteOptions& write, int
   if (HasLever(levers, Lever::kPrune) && asset.gaussians.size() > 1) {
     // Seed 0, not the fit's seed: the size that CheckBudget promises must not depend on it.
     const std::vector<uint32_t> order = ImportanceOrder(asset, 0);
-    ATEX_ASSIGN_OR_RETURN(smallest,
-                          KeepMostImportant(asset, order, 1.0 / static_cast<double>(asset.gaussians.size()), &out.kept));
+    const double one_gaussian = 1.0 / static_cast<double>(asset.gaussians.size());
+    ATEX_ASSIGN_OR_RETURN(smallest, KeepMostImportant(asset, order, one_gaussian, &out.kept));
   }
   if (HasLever(levers, Lever::kShDegree)) {
     while (smallest.gaussians.sh_degree > 0) ATEX_RETURN_IF_ERROR(LowerShDegree(&smallest));

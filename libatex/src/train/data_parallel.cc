@@ -128,7 +128,8 @@ Status DataParallel::CheckReplicasAgree(Backend& backend, const std::string& whe
   if (ranks.empty()) return Status::Ok();
   return MakeError(StatusCode::kInternal, "data parallel: at ", where, " the parameters of rank(s) ", ranks,
                    " differ from rank 0's (checksum ", checksum_of(0),
-                   "); the replicas drifted apart (a gradient or statistic not reduced, or a non-deterministic update)");
+                   "); the replicas drifted apart (a gradient or statistic not reduced, or a non-deterministic ",
+                   "update)");
 }
 
 }  // namespace atex::train

@@ -11,8 +11,9 @@
 // so the model keeps one colour space, that of the rig's average camera. The corrections are
 // fitted in closed form from the current model (FitColourAffine, trimmed least squares over the
 // camera's pixels), then normalised over the cameras (mean gain 1, mean offset 0 per channel,
-// up to the bounds below, which the normalised values keep too), alternating with training (TrainConfig::camera_colour). Test views render without any
-// correction: a held-out camera's response is unknown, the average is the best guess.
+// up to the bounds below, which the normalised values keep too), alternating with training
+// (TrainConfig::camera_colour). Test views render without any correction: a held-out camera's
+// response is unknown, the average is the best guess.
 #pragma once
 
 #include <array>
