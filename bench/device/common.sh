@@ -1,6 +1,10 @@
 # Sourced by the scripts of bench/device: the repository root as working directory, the
 # build folder, the CLI and the data copies every device call carries in .devdata
 # (copies of ../shared/data: CMU Panoptic basketball, 30 timesteps; the tiny D-NeRF lego).
+# A device call carries at most 64 MiB: the tracked tree (44 MB, 28 MB of it the fuzz corpora)
+# plus .devdata (22 MB) is over it, so move tests/fuzz/corpus out of the tree for the calls
+# (none of these scripts needs it; the fuzzing ones take their corpus from .fuzzcorpus) and
+# put it back afterwards.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/../.."
 BUILD=${ATEX_GPU_BUILD:-bg}  # git-ignored: on a lent machine only ignored folders persist between calls
