@@ -3,7 +3,7 @@
 # (copies of ../shared/data: CMU Panoptic basketball, 30 timesteps; the tiny D-NeRF lego).
 # A device call carries at most 64 MiB: the tracked tree (44 MB, 28 MB of it the fuzz corpora)
 # plus .devdata (22 MB) is over it, so move tests/fuzz/corpus out of the tree for the calls
-# (none of these scripts needs it; the fuzzing ones take their corpus from .fuzzcorpus) and
+# (only issue23_24.sh with FUZZ=1 reads it there; multi_gpu_session.sh fuzzes from .fuzzcorpus) and
 # put it back afterwards.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/../.."
