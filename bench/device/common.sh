@@ -44,3 +44,36 @@ train_short_stage1() {  # DIR GPU [ARGS...]
   CUDA_VISIBLE_DEVICES=$gpu "$atex" train --data "$bb" --stage 1 --out "$dir/stage1.atex" --json \
     --set stage1.fine_iterations=6000 "$@" > "$dir/stage1.train.json" 2> "$dir/stage1.log"
 }
+
+# Steps that outlive a device call (10 minutes a command): a script defines `steps` (which
+# writes DIR/steps.log through a `note` of its own, first "orchestrator started", last "done")
+# and `snapshot` (which writes OUT/progress.txt and the archives that come back).
+#
+# True while the orchestrator of DIR/steps.pid runs.
+steps_running() {  # DIR
+  [ -f "$1/steps.pid" ] && kill -0 "$(cat "$1/steps.pid")" 2>/dev/null
+}
+# Starts `steps` under setsid, so that it runs on after the call while the machine stays warm;
+# SETUP (shell words) runs first in the new shell.
+start_steps() {  # DIR SETUP
+  export -f steps
+  setsid nohup bash -c "source bench/device/common.sh; $2; steps" > "$1/orchestrator.log" 2>&1 &
+  echo $! > "$1/steps.pid"
+}
+# True when the last orchestrator of DIR has written "done" (the log keeps earlier attempts' lines).
+steps_finished() {  # DIR
+  tac "$1/steps.log" 2>/dev/null | sed '/\] orchestrator started$/q' | grep -q "\] done$"
+}
+# Calls `snapshot` every 15 s until COMMAND... succeeds or CALL_SECONDS (default 540) have passed
+# since START, then once more, and prints OUT/progress.txt.
+follow_until() {  # START OUT COMMAND...
+  local since=$1 progress=$2/progress.txt
+  shift 2
+  while ! "$@"; do
+    [ $(( $(date +%s) - since )) -ge "${CALL_SECONDS:-540}" ] && break
+    snapshot
+    sleep 15
+  done
+  snapshot
+  cat "$progress"
+}

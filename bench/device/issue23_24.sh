@@ -55,6 +55,7 @@ steps() {
   local t0
   t0=$(date +%s)
   note() { echo "$(date +%T) [$(( $(date +%s) - t0 ))s] $*" >> "$s/steps.log"; }
+  note "orchestrator started"
   export ATEX_SKIP_BUILD=1 ATEX_DEVDATA=out/devdata
   bb=out/devdata/panoptic_basketball
   fuzz() {  # LOG-NAME JOBS TARGETS
@@ -120,22 +121,12 @@ snapshot() {
 
 case $phase in
   start)
-    [ -f "$s/steps.pid" ] && kill -0 "$(cat "$s/steps.pid")" 2>/dev/null || {
+    steps_running "$s" || {
       prepare
-      export -f steps
       export RUNS FUZZ_SECONDS FUZZ_FIRST FUZZ RANDOM_BUDGETS
-      setsid nohup bash -c 'source bench/device/common.sh; s=out/s23; steps' > "$s/orchestrator.log" 2>&1 &
-      echo $! > "$s/steps.pid"
+      start_steps "$s" 's=out/s23'
     }
     ;&
-  wait)
-    while ! grep -q "\] done$" "$s/steps.log" 2>/dev/null; do
-      [ $(( $(date +%s) - start )) -ge "$CALL_SECONDS" ] && break
-      snapshot
-      sleep 15
-    done
-    snapshot
-    cat "$out/progress.txt"
-    ;;
+  wait) follow_until "$start" "$out" steps_finished "$s" ;;
   *) echo "unknown phase $phase (start | wait)" >&2; exit 2 ;;
 esac

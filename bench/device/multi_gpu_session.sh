@@ -183,25 +183,12 @@ case $phase in
       kill "$(cat "$s/steps.pid")" 2>/dev/null || true
       sleep 1
     fi
-    [ -f "$s/steps.pid" ] && kill -0 "$(cat "$s/steps.pid")" 2>/dev/null || {
+    steps_running "$s" || {
       prepare
-      export -f steps
-      export s atex BUILD
-      setsid nohup bash -c 'source bench/device/common.sh; BUILD=bg-nccl; atex=$BUILD/bin/atex; steps' \
-        > "$s/orchestrator.log" 2>&1 &
-      echo $! > "$s/steps.pid"
+      export s
+      start_steps "$s" 'BUILD=bg-nccl; atex=$BUILD/bin/atex'
     }
     ;&
-  wait)
-    # The last orchestrator's own "done" (the log keeps earlier attempts' lines).
-    finished() { tac "$s/steps.log" 2>/dev/null | sed '/\] orchestrator started$/q' | grep -q "\] done$"; }
-    while ! finished; do
-      [ $(( $(date +%s) - start )) -ge "$CALL_SECONDS" ] && break
-      snapshot
-      sleep 15
-    done
-    snapshot
-    cat "$out/progress.txt"
-    ;;
+  wait) follow_until "$start" "$out" steps_finished "$s" ;;
   *) echo "unknown phase $phase (start | wait)" >&2; exit 2 ;;
 esac

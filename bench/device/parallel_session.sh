@@ -87,16 +87,10 @@ case $phase in
     PARALLEL_SESSION_START=$start "$0" wait "$out"
     ;;
   wait)
-    while :; do
-      done_all=1
-      for j in ${JOBS:-session stress}; do [ -f "out/$j.rc" ] || done_all=0; done
-      [ $done_all = 1 ] && break
-      [ $(( $(date +%s) - start )) -ge "$CALL_SECONDS" ] && break
-      snapshot
-      sleep 15
-    done
-    snapshot
-    cat "$out/progress.txt"
+    jobs_done() {
+      for j in ${JOBS:-session stress}; do [ -f "out/$j.rc" ] || return 1; done
+    }
+    follow_until "$start" "$out" jobs_done
     ;;
   *) echo "unknown phase $phase" >&2; exit 2 ;;
 esac

@@ -17,24 +17,13 @@ const char* ParamGroupName(int group) {
 }
 
 void ResetMoments(ModelState* state) {
-  auto zeros_like = [](const Gaussians& g) {
-    Gaussians z;
-    z.sh_degree = g.sh_degree;
-    z.Resize(g.size());
-    return z;
-  };
-  state->m_gaussians = zeros_like(state->gaussians);
-  state->v_gaussians = zeros_like(state->gaussians);
-  const size_t texels = state->textures ? state->textures->texels.size() : 0;
-  state->m_texels.assign(texels, 0.0f);
-  state->v_texels.assign(texels, 0.0f);
-  if (state->deformation) {
-    state->m_deformation = ZerosLike(*state->deformation);
-    state->v_deformation = ZerosLike(*state->deformation);
-  } else {
-    state->m_deformation.reset();
-    state->v_deformation.reset();
-  }
+  state->m_gaussians = Gaussians();
+  state->v_gaussians = Gaussians();
+  state->m_texels.clear();
+  state->v_texels.clear();
+  state->m_deformation.reset();
+  state->v_deformation.reset();
+  FillMissingMoments(state);
   state->adam_steps.fill(0);
 }
 
@@ -78,20 +67,17 @@ void FillMissingMoments(ModelState* state) {
   }
 }
 
-ModelState StateFromAsset(const Asset& asset) {
-  ModelState state;
-  state.gaussians = asset.gaussians;
-  state.textures = asset.textures;
-  state.deformation = asset.deformation;
-  ResetMoments(&state);
-  return state;
-}
-
 ModelState RenderStateFromAsset(const Asset& asset) {
   ModelState state;
   state.gaussians = asset.gaussians;
   state.textures = asset.textures;
   state.deformation = asset.deformation;
+  return state;
+}
+
+ModelState StateFromAsset(const Asset& asset) {
+  ModelState state = RenderStateFromAsset(asset);
+  ResetMoments(&state);
   return state;
 }
 

@@ -9,11 +9,16 @@
 namespace atex::train {
 namespace {
 
-TEST(ModelState, ARenderStateCarriesTheParametersWithoutMoments) {
+// A synthetic asset with textures and a deformation field, without training statistics.
+Asset SmallAsset(size_t gaussians) {
   container::SyntheticAssetOptions o;
-  o.gaussians = 50;
+  o.gaussians = gaussians;
   o.stats = false;
-  const Asset asset = container::MakeSyntheticAsset(o);
+  return container::MakeSyntheticAsset(o);
+}
+
+TEST(ModelState, ARenderStateCarriesTheParametersWithoutMoments) {
+  const Asset asset = SmallAsset(50);
   const ModelState bare = RenderStateFromAsset(asset);
   EXPECT_EQ(bare.gaussians.positions, asset.gaussians.positions);
   EXPECT_EQ(bare.gaussians.sh, asset.gaussians.sh);
@@ -43,10 +48,7 @@ TEST(ModelState, ARenderStateCarriesTheParametersWithoutMoments) {
 // present Gaussian ones are zeroed (the CPU backend once checked the Gaussians' alone and left
 // the others empty), and present ones are kept.
 TEST(ModelState, MissingMomentsAreFilledPerGroup) {
-  container::SyntheticAssetOptions o;
-  o.gaussians = 30;
-  o.stats = false;
-  const Asset asset = container::MakeSyntheticAsset(o);
+  const Asset asset = SmallAsset(30);
   ModelState state = StateFromAsset(asset);
   for (float& x : state.m_gaussians.positions) x = 0.5f;
   state.m_texels.clear();
