@@ -29,7 +29,8 @@ struct FitArgs {
   double quality = 0;
   std::string data;
   atex::cli::DatasetArgs dataset;
-  int probes = 8, probe_size = 256, eval_views = 0;
+  int probes = 8, probe_size = 256, eval_views = 0, parallel_candidates = 0;
+  double step_growth = 2.0;
   int finetune = 0;
   std::string backend = "auto";
   bool keep_stats = false;
@@ -146,6 +147,8 @@ int RunFit(const FitArgs& a) {
   o.keep_stats = a.keep_stats;
   o.seed = a.seed;
   o.levers = *levers;
+  o.step_growth = a.step_growth;
+  o.parallel_candidates = a.parallel_candidates;
   o.progress = [&](const fit::FitProgress& p) {
     if (!a.json) std::cerr << "atex fit: move " << p.move << ": " << p.text << "\n";
   };
@@ -202,6 +205,10 @@ atex::cli::Runner SetupFit(CLI::App& app) {
   atex::cli::AddDatasetOptions(app, &a->dataset);
   cli::AddInt(app, "--probes", &a->probes, 1, 100000, "Views the distortion is measured from");
   cli::AddInt(app, "--probe-size", &a->probe_size, 8, 16384, "Longer side of the probe renders in pixels");
+  cli::AddReal(app, "--step-growth", &a->step_growth, 1, 16,
+               "A prune or texture step that wins again grows by this factor (1: fixed 10 % steps)");
+  cli::AddInt(app, "--parallel-candidates", &a->parallel_candidates, 0, 64,
+              "Candidate moves prepared at once, each holding copies of the asset (0: min(4, cores); 1: serial)");
   cli::AddInt(app, "--eval-views", &a->eval_views, 0, 1 << 24, "Test views for PSNR (evenly spaced; 0 = all)");
   cli::AddInt(app, "--finetune", &a->finetune, 0, 100000000,
               "Retrain the trimmed model this many steps, then fit again (needs --data)");

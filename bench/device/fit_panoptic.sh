@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Fit speed and quality A/B on one GPU (issue 23): Panoptic basketball uniform and adaptive
-# models fitted to 25 % of the uniform file, with the current tree (into $BUILD) and .oldsrc
-# (into build-old: `git archive COMMIT | tar -x -C .oldsrc`), in one call, one after the other
-# on the same GPU. Each fit is timed (wall seconds of the process) and its output evaluated on
+# models fitted to 25 % of the uniform file, with the current tree (into $BUILD; at its defaults
+# and with --step-growth 1) and .oldsrc (into build-old: `git archive COMMIT | tar -x -C .oldsrc`),
+# in one call, one after the other on the same GPU. Each fit is timed (wall seconds of the process) and its output evaluated on
 # the test views; outputs are checked against the budget and with `atex verify`.
 #
 #   bench/device/fit_panoptic.sh OUT_DIR [UNIFORM.atex ADAPTIVE.atex | --train-only]
@@ -47,27 +47,39 @@ fi
 budget=$(( $(stat -c %s "$uniform") / 4 ))
 rows=$out/fit_panoptic.jsonl
 : > "$rows"
+# Three fitters per model: the old CLI; the new one with fixed steps (--step-growth 1: the old
+# plan, so the same output, sped up by what does not change the plan); the new one at its
+# defaults (growing steps).
+configs=("$OLD|old|" "$BUILD|new-fixed-steps|--step-growth 1" "$BUILD|new|")
 for model in uniform adaptive; do
   input=${!model}
-  for bin in "$OLD" "$BUILD"; do
-    name=$out/${model}_$(basename "$bin")
+  for config in "${configs[@]}"; do
+    IFS='|' read -r bin label extra <<< "$config"
+    name=$out/${model}_$label
+    rm -f "$name.atex"
     start=$(date +%s.%N)
-    "$bin/bin/atex" fit "$input" "$name.atex" --budget "$budget" --data "$bb" --json > "$name.fit.json" 2> "$name.fit.log"
+    # shellcheck disable=SC2086  # $extra is a list of words
+    "$bin/bin/atex" fit "$input" "$name.atex" --budget "$budget" --data "$bb" --json $extra \
+      > "$name.fit.json" 2> "$name.fit.log"
     end=$(date +%s.%N)
     "$BUILD/bin/atex" eval "$name.atex" --data "$bb" --json > "$name.eval.json"
     verified=true
     "$BUILD/bin/atex" verify "$name.atex" > /dev/null 2>&1 || verified=false
-    python3 - "$name" "$model" "$bin" "$budget" "$start" "$end" "$verified" >> "$rows" <<'PY'
+    python3 - "$name" "$model" "$label" "$budget" "$start" "$end" "$verified" >> "$rows" <<'PY'
 import json, os, sys
-name, model, binary, budget, start, end, verified = sys.argv[1:]
+name, model, label, budget, start, end, verified = sys.argv[1:]
 fit = json.load(open(name + ".fit.json"))
 ev = json.load(open(name + ".eval.json"))
 size = os.path.getsize(name + ".atex")
-print(json.dumps({"model": model, "build": binary, "budget_bytes": int(budget), "bytes": size,
+timing = fit.get("plan_timing", [{}])[0]
+print(json.dumps({"model": model, "build": label, "budget_bytes": int(budget), "bytes": size,
                   "within_budget": size <= int(budget), "verify": verified == "true",
-                  "wall_s": round(float(end) - float(start), 2), "fit_s": fit["seconds"].get("fit"),
-                  "measurements": fit.get("plan_timing", [{}])[0].get("measurements"),
-                  "test_psnr": ev["mean"]["psnr"], "gaussians": fit["levers"]["gaussians"]["after"]}))
+                  "wall_s": round(float(end) - float(start), 2), "fit_s": fit.get("seconds", {}).get("fit"),
+                  "measurements": timing.get("measurements"), "plan_seconds": timing.get("seconds"),
+                  "apply_plan_seconds": timing.get("apply_plan_seconds"),
+                  "refill_seconds": timing.get("refill_seconds"), "moves": len(fit.get("moves", [])),
+                  "test_psnr": ev["mean"]["psnr"],
+                  "gaussians": fit.get("levers", {}).get("gaussians", {}).get("after")}))
 PY
   done
 done
@@ -77,6 +89,6 @@ rows = [json.loads(l) for l in open(sys.argv[1])]
 print("| model | build | wall s | fit s | measurements | bytes | within | verify | test PSNR |")
 print("|---|---|---:|---:|---:|---:|---|---|---:|")
 for r in rows:
-    print(f"| {r['model']} | {r['build']} | {r['wall_s']} | {r['fit_s']:.1f} | {r['measurements']} | {r['bytes']} "
+    print(f"| {r['model']} | {r['build']} | {r['wall_s']} | {r['fit_s']} | {r['measurements']} | {r['bytes']} "
           f"| {r['within_budget']} | {r['verify']} | {r['test_psnr']:.4f} |")
 PY

@@ -9,12 +9,12 @@
 # Steps (logs in out/s23/):
 #   1. (in the start call) the CUDA build (bg: CLI and tests) and .oldsrc's CLI (build-old); copies
 #      under out/ of the fuzz kit, the corpus, the data and the lego sample
-#   2. GPU: the CUDA tests (ctest -L cuda), then fit_panoptic.sh's short models
+#   2. GPU: the CUDA tests (ctest -L cuda) beside the training of fit_panoptic.sh's short models
 #      meanwhile (RANDOM_BUDGETS=1): bench/fit_random_budgets.sh -n 1000 on the lego sample (8
 #      fits at a time, on the GPU: the fit's backend is auto), and (FUZZ=1) the fuzz campaign on
 #      FUZZ_FIRST (fast targets, 6 processes)
-#   3. fit_panoptic.sh on those models, old and new CLI, alone on the machine (timed); the
-#      stage-1 model fitted to 15 MiB (issue 21: small enough to come back from the device)
+#   3. fit_panoptic.sh on those models, old and new CLI, alone on the machine (timed); with
+#      FIT15=1 the stage-1 model fitted to 15 MiB (issue 21: small enough to come back)
 #   4. GPU: gpu_memory_stress.sh; CPU meanwhile (FUZZ=1): the fuzz campaign on the other targets
 #      (14 processes)
 source "$(dirname "$0")/common.sh"
@@ -63,9 +63,12 @@ steps() {
       --jobs "$2" --seconds "$FUZZ_SECONDS" --runs "$RUNS" --targets "$3" --out "$s/$1" > "$s/$1.log" 2>&1
   }
   note "step 2: GPU tests and models | random budgets | fuzz $FUZZ_FIRST"
+  # The CUDA tests beside the training of the fit's models (the tests are short and small).
   (
     ctest --test-dir "$BUILD" -L cuda --output-on-failure -j 1 > "$s/gpu_ctest.log" 2>&1
     echo "rc=$?" >> "$s/gpu_ctest.log"
+  ) &
+  (
     bench/device/fit_panoptic.sh "$s/fit" --train-only > "$s/train_models.log" 2>&1
     echo "rc=$?" >> "$s/train_models.log"
   ) &
@@ -84,9 +87,11 @@ steps() {
   note "step 3: timed fits"
   bench/device/fit_panoptic.sh "$s/fit" out/fitp/uniform.atex out/fitp/adaptive.atex > "$s/fit_panoptic.log" 2>&1
   note "fit_panoptic rc=$?"
-  "$atex" fit out/fitp/stage1.atex "$s/panoptic_stage1_15MiB.atex" --budget 15MiB --data "$bb" --force --json \
-    > "$s/fit15.json" 2> "$s/fit15.log"
-  "$atex" eval "$s/panoptic_stage1_15MiB.atex" --data "$bb" --json > "$s/fit15.eval.json" 2>&1
+  if [ "${FIT15:-0}" = 1 ]; then  # issue 21's player model (done): off unless asked for
+    "$atex" fit out/fitp/stage1.atex "$s/panoptic_stage1_15MiB.atex" --budget 15MiB --data "$bb" --force --json \
+      > "$s/fit15.json" 2> "$s/fit15.log"
+    "$atex" eval "$s/panoptic_stage1_15MiB.atex" --data "$bb" --json > "$s/fit15.eval.json" 2>&1
+  fi
   "$atex" eval out/fitp/stage1.atex --data "$bb" --json > "$s/stage1.eval.json" 2>&1
   note "step 4: stress | fuzz rest, random budgets"
   (bench/device/gpu_memory_stress.sh > "$s/gpu_memory_stress.log" 2>&1; echo "rc=$?" >> "$s/gpu_memory_stress.log") &

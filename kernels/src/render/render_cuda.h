@@ -58,6 +58,10 @@ struct RenderStats {
   float* scale_v_sum = nullptr;    // [N][bins]
 };
 
+// The most (tile, Gaussian) pairs one view may have: the tile lists are indexed with 32 bits
+// and sorted by CUB with an int count. A view past it is refused with kLimitExceeded.
+inline constexpr uint64_t kMaxTileEntries = 0x7FFFFFFFull;
+
 class RenderEngine {
  public:
   explicit RenderEngine(cudaStream_t stream);
@@ -65,6 +69,8 @@ class RenderEngine {
 
   // Renders colour [H][W][3] (and alpha [H][W] = 1 − T_final when non-null). When importance is
   // non-null, adds each Gaussian's blending weights over all pixels (+=). Keeps what Backward needs.
+  // kLimitExceeded when the workspace does not fit on the device, or the view has more than
+  // kMaxTileEntries (tile, Gaussian) pairs.
   Status Forward(const detail::CameraModel<float>& camera, const RenderInputs& in, float* color, float* alpha,
                  float* importance);
   // Backward of the last Forward for dL/dcolor (and dL/dalpha when non-null).

@@ -2,12 +2,31 @@
 #include <cub/device/device_radix_sort.cuh>
 #include <cub/device/device_scan.cuh>
 
+#include "cuda_check.h"
 #include "device_buffer.h"
 #include "render/render_kernels.h"
 
 namespace atex::cuda {
 
 using render::Projected;
+
+namespace {
+
+// total += sum of counts[0, n) in 64 bits (the tile lists' 32-bit prefix sum wraps silently
+// past 2^32 entries: 8 M screen-sized Gaussians at 1352x1014 make 43 billion).
+__global__ void SumTilesTouched(const uint32_t* __restrict__ counts,  // [n]
+                                int n, unsigned long long* __restrict__ total) {
+  unsigned long long sum = 0;
+  for (int i = blockIdx.x * blockDim.x + threadIdx.x; i < n; i += gridDim.x * blockDim.x) sum += counts[i];
+  for (int offset = 16; offset > 0; offset /= 2) sum += __shfl_down_sync(0xffffffffu, sum, offset);
+  if ((threadIdx.x & 31) == 0 && sum > 0) atomicAdd(total, sum);
+}
+
+// Bytes of tile-list workspace per (tile, Gaussian) entry: keys and sorted keys (8 + 8), ids
+// and sorted ids (4 + 4).
+constexpr uint64_t kBytesPerEntry = 24;
+
+}  // namespace
 
 struct RenderEngine::Impl {
   cudaStream_t stream;
@@ -22,6 +41,7 @@ struct RenderEngine::Impl {
   DeviceBuffer<uint64_t> keys, keys_sorted;
   DeviceBuffer<uint32_t> ids, ids_sorted;
   DeviceBuffer<uint8_t> cub_temp;
+  DeviceBuffer<unsigned long long> entry_total;  // [1]: the 64-bit entry count
   // Per tile / pixel.
   DeviceBuffer<uint2> ranges;
   DeviceBuffer<float> final_transmittance;
@@ -72,9 +92,26 @@ Status RenderEngine::Forward(const detail::CameraModel<float>& cam, const Render
   const Projected p = s.View();
   ATEX_RETURN_IF_ERROR(render::LaunchProject(cam, in, p, stream));
 
-  // Inclusive prefix sum of the tile counts; its last value is the number of entries.
+  // Inclusive prefix sum of the tile counts; its last value is the number of entries. The
+  // lists index entries with 32 bits: more is a limit of this renderer, refused before the
+  // sum wraps (the exact count, and the memory it would take, in the message).
   s.entries = 0;
   if (n > 0) {
+    ATEX_RETURN_IF_ERROR(s.entry_total.Resize(1));
+    ATEX_RETURN_IF_ERROR(s.entry_total.Zero(stream));
+    SumTilesTouched<<<std::min(1024, (n + 255) / 256), 256, 0, stream>>>(s.tiles_touched.data(), n,
+                                                                        s.entry_total.data());
+    ATEX_CUDA_RETURN_IF_ERROR(cudaGetLastError());
+    unsigned long long total = 0;
+    ATEX_CUDA_RETURN_IF_ERROR(
+        cudaMemcpyAsync(&total, s.entry_total.data(), sizeof(total), cudaMemcpyDeviceToHost, stream));
+    ATEX_CUDA_RETURN_IF_ERROR(cudaStreamSynchronize(stream));
+    if (total > kMaxTileEntries) {
+      return MakeError(StatusCode::kLimitExceeded, "a ", cam.width, "x", cam.height, " view of ", n,
+                       " Gaussians has ", total, " (tile, Gaussian) pairs, more than the renderer's limit of ",
+                       kMaxTileEntries, "; their tile lists would take ", total * kBytesPerEntry / double(1ull << 30),
+                       " GiB asked; ", DeviceMemoryNote(), ". Use fewer or smaller Gaussians, or a smaller image");
+    }
     size_t temp_bytes = 0;
     ATEX_CUDA_RETURN_IF_ERROR(
         cub::DeviceScan::InclusiveSum(nullptr, temp_bytes, s.tiles_touched.data(), s.tile_ends.data(), n, stream));

@@ -104,12 +104,36 @@ class EncodeCache {
 // EncodeAsset through `cache` (nullptr: no cache).
 StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOptions& options, EncodeCache* cache);
 
+// Remembers decoded attribute streams so that decoding a file whose chunks are partly
+// byte-identical to recently decoded ones decompresses and converts only the others (the
+// budget fitter decodes every candidate it measures, and most differ from the current state
+// in one or two chunks). A hit is verified byte for byte against the stored chunk, its codec
+// and its shape, so a cached decode returns exactly the values of an uncached one. Keeps the
+// most recently used `entries_per_chunk` versions of each chunk type (their stored bytes and
+// decoded values: memory of a few decoded assets). Thread-safe.
+class DecodeCache {
+ public:
+  explicit DecodeCache(int entries_per_chunk = 3);
+  ~DecodeCache();
+  DecodeCache(const DecodeCache&) = delete;
+  DecodeCache& operator=(const DecodeCache&) = delete;
+  uint64_t hits() const;
+  uint64_t misses() const;
+  struct Impl;
+
+ private:
+  friend StatusOr<Asset> DecodeAsset(const uint8_t*, size_t, const ReadOptions&, DecodeCache*);
+  Impl* impl_;
+};
+
 // Decodes and checks a whole file (every structural rule, every CRC, every value;
 // the result passes ValidateAsset). Unknown non-critical chunks are skipped,
 // unknown critical chunks refused (kUnknownCriticalChunk). Errors name the chunk
 // and byte offset. Lossy encodings (f16, quant, Draco) come back as the values
 // the file holds, not the values originally written.
 StatusOr<Asset> DecodeAsset(const uint8_t* data, size_t size, const ReadOptions& options = {});
+// DecodeAsset through `cache` (nullptr: no cache); every check still runs on the result.
+StatusOr<Asset> DecodeAsset(const uint8_t* data, size_t size, const ReadOptions& options, DecodeCache* cache);
 
 // File forms; writes are atomic (temporary file + rename). Errors are prefixed
 // with the path.

@@ -155,6 +155,16 @@ struct PlanOptions {
   LeverSet levers = kDefaultLevers;  // the levers whose moves are proposed
   double prune_fraction = 0.10;    // a prune move removes this fraction of the current Gaussians (at least 1)
   double texture_fraction = 0.10;  // a texture move removes about this fraction of the current texels
+  // A divisible lever (prune, textures) whose moves are taken one after another takes steps
+  // this many times larger each time, up to half the Gaussians (prune) or every growable
+  // texture (textures); another lever's move resets it. The plan's last move is cut to the
+  // budget by ApplyPlan, so a large step costs no bytes; it makes the greedy search coarser
+  // where one lever keeps winning, and needs fewer measurements there. 1: fixed fractions.
+  double step_growth = 2.0;
+  // Proposals prepared at once (apply, encode and decode; renders stay one at a time), each
+  // holding a few copies of the asset in memory: 0 picks min(4, hardware threads), 1 is
+  // serial. The plan is the same for any value.
+  int parallel_candidates = 0;
   uint64_t seed = 6666;            // breaks importance ties deterministically
   int min_grid_resolution = 4;     // the grid lever stops here (spatial axes)
   std::function<void(const FitProgress&)> progress;
@@ -164,7 +174,8 @@ struct PlanOptions {
 };
 
 // Where the plan's time went: every measurement of a state (the initial one and each
-// candidate move) encodes, decodes and renders the probes. Wall seconds, summed.
+// candidate move) encodes, decodes and renders the probes. Wall seconds, summed over
+// measurements (see overlap_seconds for the ones prepared at once).
 struct MeasureTiming {
   int measurements = 0;
   double apply_seconds = 0;       // applying candidate moves to a copy of the state
@@ -174,6 +185,10 @@ struct MeasureTiming {
   double distortion_seconds = 0;  // MeanSquaredError against the reference renders
   double reference_seconds = 0;   // the input's reference renders (once per plan)
   double propose_seconds = 0;     // listing the candidate moves of each state (Proposals)
+  // Apply, encode and decode are summed over candidates; those prepared at once
+  // (PlanOptions::parallel_candidates) overlap, and this is by how much: their summed
+  // preparation seconds less the wall time it took. The parts above less this fit in total.
+  double overlap_seconds = 0;
   double total_seconds = 0;       // BuildPlan's whole wall time: the parts above, the prune order,
                                   // bookkeeping and PlanOptions::accept_more (--quality's evaluations)
   ProbeRenderer::CacheCounts probe_cache;  // the CPU probe renderer's reuse during the plan

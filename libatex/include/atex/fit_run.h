@@ -35,6 +35,8 @@ struct FitRunOptions {
   bool keep_stats = false;        // keep the GSTA chunk in the outputs
   uint64_t seed = 6666;
   LeverSet levers = kDefaultLevers;
+  double step_growth = 2.0;       // PlanOptions::step_growth, in [1, 16]
+  int parallel_candidates = 0;    // PlanOptions::parallel_candidates (0: automatic), in [0, 64]
   std::function<void(const FitProgress&)> progress;  // each move taken
   // Fine-tune progress (return false to stop training early).
   std::function<bool(const train::TrainProgress&)> finetune_progress;
@@ -43,7 +45,7 @@ struct FitRunOptions {
 // kInvalidArgument naming the option when the options are inconsistent: no mode, both a
 // budget and a quality floor, probes < 1, probe_size < 8, eval_views or finetune < 0,
 // keep_count outside [0, 1], a quality floor or fine-tune without a dataset, fine-tune
-// with several budgets, a non-finite quality.
+// with several budgets, a non-finite quality, step_growth or parallel_candidates out of range.
 Status ValidateFitRunOptions(const FitRunOptions& options, bool have_dataset);
 
 // One fitted file.

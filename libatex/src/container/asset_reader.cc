@@ -3,6 +3,9 @@
 // has been backed by decoded data.
 #include <array>
 #include <bit>
+#include <cstring>
+#include <list>
+#include <mutex>
 #include <optional>
 
 #include "atex/container.h"
@@ -16,6 +19,65 @@
 #include "container/layout.h"
 
 namespace atex {
+
+// Per chunk type, the most recently used versions first.
+struct DecodeCache::Impl {
+  struct Entry {
+    std::vector<uint8_t> stored;  // the chunk's bytes as stored
+    container::CodecParams codec;
+    uint64_t raw_size = 0, rows = 0;
+    uint32_t components = 0;
+    std::vector<float> values;  // what they decode to
+  };
+  explicit Impl(int entries) : entries_per_chunk(entries < 1 ? 1 : entries) {}
+  const int entries_per_chunk;
+  mutable std::mutex mutex;
+  std::array<std::list<Entry>, static_cast<size_t>(container::ChunkId::kCount)> chunks;
+  uint64_t hits = 0, misses = 0;
+
+  static bool Same(const Entry& e, const uint8_t* stored, const container::TocEntry& toc, uint64_t rows,
+                   uint32_t components) {
+    return e.codec.codec == toc.codec.codec && e.codec.element_size == toc.codec.element_size &&
+           e.codec.components == toc.codec.components && e.codec.skip == toc.codec.skip &&
+           e.raw_size == toc.raw_size && e.rows == rows && e.components == components &&
+           e.stored.size() == toc.stored_size && std::memcmp(e.stored.data(), stored, e.stored.size()) == 0;
+  }
+  bool Find(container::ChunkId id, const uint8_t* stored, const container::TocEntry& toc, uint64_t rows,
+            uint32_t components, std::vector<float>* values) {
+    std::lock_guard<std::mutex> lock(mutex);
+    auto& list = chunks[static_cast<size_t>(id)];
+    for (auto it = list.begin(); it != list.end(); ++it) {
+      if (Same(*it, stored, toc, rows, components)) {
+        *values = it->values;
+        list.splice(list.begin(), list, it);
+        ++hits;
+        return true;
+      }
+    }
+    ++misses;
+    return false;
+  }
+  void Add(container::ChunkId id, const uint8_t* stored, const container::TocEntry& toc, uint64_t rows,
+           uint32_t components, const std::vector<float>& values) {
+    Entry e{std::vector<uint8_t>(stored, stored + toc.stored_size), toc.codec, toc.raw_size, rows, components, values};
+    std::lock_guard<std::mutex> lock(mutex);
+    auto& list = chunks[static_cast<size_t>(id)];
+    list.push_front(std::move(e));
+    while (list.size() > static_cast<size_t>(entries_per_chunk)) list.pop_back();
+  }
+};
+
+DecodeCache::DecodeCache(int entries_per_chunk) : impl_(new Impl(entries_per_chunk)) {}
+DecodeCache::~DecodeCache() { delete impl_; }
+uint64_t DecodeCache::hits() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->hits;
+}
+uint64_t DecodeCache::misses() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->misses;
+}
+
 namespace container {
 namespace {
 
@@ -23,8 +85,8 @@ constexpr size_t kChunkKinds = static_cast<size_t>(ChunkId::kCount);
 
 class AssetDecoder {
  public:
-  AssetDecoder(const uint8_t* data, size_t size, const ReadOptions& options)
-      : data_(data), size_(size), options_(options) {}
+  AssetDecoder(const uint8_t* data, size_t size, const ReadOptions& options, DecodeCache::Impl* cache)
+      : data_(data), size_(size), options_(options), cache_(cache) {}
 
   StatusOr<Asset> Run() {
     ATEX_ASSIGN_OR_RETURN(container_, ParseContainer(data_, size_, options_.verify_checksums));
@@ -229,6 +291,17 @@ class AssetDecoder {
   // real (decoded) size. Thread-safe for distinct outputs.
   Status Stream(ChunkId id, uint32_t components, uint64_t rows, std::vector<float>* values) const {
     const TocEntry& e = Entry(id);
+    if (cache_ == nullptr) return DecodeStreamChunk(id, components, rows, values);
+    // Chunks stored in draco are not cached: their header check below reads the decoded bytes.
+    if (e.codec.codec == Codec::kDraco) return DecodeStreamChunk(id, components, rows, values);
+    if (cache_->Find(id, data_ + e.offset, e, rows, components, values)) return Status::Ok();
+    ATEX_RETURN_IF_ERROR(DecodeStreamChunk(id, components, rows, values));
+    cache_->Add(id, data_ + e.offset, e, rows, components, *values);
+    return Status::Ok();
+  }
+
+  Status DecodeStreamChunk(ChunkId id, uint32_t components, uint64_t rows, std::vector<float>* values) const {
+    const TocEntry& e = Entry(id);
     if (std::endian::native == std::endian::little && e.codec.codec == Codec::kShuffleZstd &&
         e.codec.element_size == 4 && e.codec.skip >= kStreamHeaderSize) {
       // The common f32 case: unshuffle straight into the destination (one buffer less).
@@ -321,15 +394,20 @@ class AssetDecoder {
   ParsedContainer container_;
   std::array<int, kChunkKinds> index_{};
   uint64_t gaussian_count_ = 0;  // from GHDR, set before any stream is decoded
+  DecodeCache::Impl* cache_;     // may be null
 };
 
 }  // namespace
 }  // namespace container
 
 StatusOr<Asset> DecodeAsset(const uint8_t* data, size_t size, const ReadOptions& options) {
+  return DecodeAsset(data, size, options, nullptr);
+}
+
+StatusOr<Asset> DecodeAsset(const uint8_t* data, size_t size, const ReadOptions& options, DecodeCache* cache) {
   if (data == nullptr && size != 0) return MakeError(StatusCode::kInvalidArgument, "DecodeAsset: null data");
   try {
-    container::AssetDecoder decoder(data, size, options);
+    container::AssetDecoder decoder(data, size, options, cache != nullptr ? cache->impl_ : nullptr);
     return decoder.Run();
   } catch (const std::bad_alloc&) {
     return MakeError(StatusCode::kLimitExceeded, "out of memory decoding a ", size, "-byte .atex file");

@@ -1,5 +1,5 @@
-// EncodeCache: cached encodes are byte-identical to uncached ones, and hits happen
-// only for unchanged content.
+// EncodeCache and DecodeCache: cached encodes are byte-identical to uncached ones, cached
+// decodes equal uncached ones, and hits happen only for unchanged content.
 #include <gtest/gtest.h>
 
 #include "atex/container.h"
@@ -91,6 +91,73 @@ TEST(EncodeCache, ChangedContentIsAMissNotAStaleHit) {
   const auto plain_raw = EncodeAsset(asset, raw);
   ASSERT_TRUE(cached_raw.ok() && plain_raw.ok());
   EXPECT_EQ(*cached_raw, *plain_raw);
+}
+
+// Every value of two decoded assets, compared exactly (bit patterns: -0 and NaN-free inputs).
+void ExpectSameValues(const Asset& a, const Asset& b, int c) {
+  EXPECT_EQ(a.gaussians.positions, b.gaussians.positions) << c;
+  EXPECT_EQ(a.gaussians.rotations, b.gaussians.rotations) << c;
+  EXPECT_EQ(a.gaussians.log_scales, b.gaussians.log_scales) << c;
+  EXPECT_EQ(a.gaussians.opacity_logits, b.gaussians.opacity_logits) << c;
+  EXPECT_EQ(a.gaussians.sh, b.gaussians.sh) << c;
+  ASSERT_EQ(a.textures.has_value(), b.textures.has_value()) << c;
+  if (a.textures) EXPECT_EQ(a.textures->texels, b.textures->texels) << c;
+  ASSERT_EQ(a.deformation.has_value(), b.deformation.has_value()) << c;
+  if (a.deformation) {
+    EXPECT_EQ(a.deformation->planes, b.deformation->planes) << c;
+    EXPECT_EQ(EncodeAsset(a).value(), EncodeAsset(b).value()) << c;  // the MLP and the rest
+  }
+  ASSERT_EQ(a.stats.has_value(), b.stats.has_value()) << c;
+  if (a.stats) EXPECT_EQ(a.stats->importance, b.stats->importance) << c;
+}
+
+TEST(DecodeCache, CachedDecodesEqualUncachedAcrossChangingFiles) {
+  DecodeCache cache(2);
+  Asset asset = Sample(3, 500, 3, SyntheticTextures::kMixed);
+  int cases_with_hits = 0;
+  for (int c = 0; c < 24; ++c) {
+    const WriteOptions w = Mix(c % 6);
+    if (c % 4 == 3) asset.gaussians.positions[c] += 0.25f;  // one stream changes, the rest may hit
+    const auto bytes = EncodeAsset(asset, w);
+    ASSERT_TRUE(bytes.ok()) << bytes.status().ToString();
+    const auto plain = DecodeAsset(bytes->data(), bytes->size());
+    const uint64_t hits_before = cache.hits();
+    const auto cached = DecodeAsset(bytes->data(), bytes->size(), {}, &cache);
+    ASSERT_TRUE(plain.ok() && cached.ok()) << plain.status().ToString() << cached.status().ToString();
+    ExpectSameValues(*plain, *cached, c);
+    // The same file again: every stream is a hit.
+    const uint64_t misses_before = cache.misses();
+    const auto again = DecodeAsset(bytes->data(), bytes->size(), {}, &cache);
+    ASSERT_TRUE(again.ok());
+    ExpectSameValues(*plain, *again, c);
+    EXPECT_EQ(cache.misses(), misses_before) << "case " << c;
+    cases_with_hits += cache.hits() > hits_before ? 1 : 0;
+  }
+  EXPECT_GT(cases_with_hits, 0);
+}
+
+TEST(DecodeCache, AChangedChunkIsDecodedAndACorruptOneStillRefused) {
+  DecodeCache cache;
+  Asset asset = Sample(5, 200, 1, SyntheticTextures::kUniform);
+  WriteOptions w = Mix(0);
+  w.texels = ScalarEncoding::kQuant8;
+  const auto first = EncodeAsset(asset, w);
+  ASSERT_TRUE(first.ok());
+  ASSERT_TRUE(DecodeAsset(first->data(), first->size(), {}, &cache).ok());
+  const uint64_t misses = cache.misses();
+  asset.textures->texels.back() += 0.5f;  // one texel: TEXL's stored bytes change
+  const auto second = EncodeAsset(asset, w);
+  ASSERT_TRUE(second.ok());
+  const auto cached = DecodeAsset(second->data(), second->size(), {}, &cache);
+  const auto plain = DecodeAsset(second->data(), second->size());
+  ASSERT_TRUE(cached.ok() && plain.ok());
+  ExpectSameValues(*plain, *cached, 0);
+  EXPECT_EQ(cache.misses(), misses + 1);  // TEXL only
+  // A file whose cached chunk is damaged after its header: the CRC check still refuses it.
+  std::vector<uint8_t> damaged = *second;
+  damaged[damaged.size() / 2] ^= 0x40;
+  const auto refused = DecodeAsset(damaged.data(), damaged.size(), {}, &cache);
+  EXPECT_FALSE(refused.ok());
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <numeric>
 
 #include "atex/fit.h"
+#include "count_search.h"
 #include "plan_state.h"
 
 namespace atex::fit {
@@ -93,23 +94,21 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
     }
     Move last = plan.moves[j];
     if (last.divisible() && last.count > 1) {
-      // Smallest count that fits (the full count is known to fit).
-      uint64_t lo = 1, hi = last.count;
-      while (lo < hi) {
-        const uint64_t mid = lo + (hi - lo) / 2;
+      // Smallest count that fits: count 0 is the state before the move (above the budget, as
+      // every earlier move's size), the full count is known to fit (count_search.h).
+      const uint64_t before = j == 0 ? bytes.size() : plan.moves[j - 1].bytes_after;
+      const auto bytes_at = [&](uint64_t count) -> StatusOr<uint64_t> {
         State trial = state;
         Move m = last;
-        m.count = mid;
+        m.count = count;
         ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &trial.asset, &trial.write, &trial.kept,
                                        plan.min_grid_resolution));
         ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, encode(trial));
-        if (trial_bytes.size() <= budget_bytes) {
-          hi = mid;
-        } else {
-          lo = mid + 1;
-        }
-      }
-      last.count = hi;
+        return static_cast<uint64_t>(trial_bytes.size());
+      };
+      ATEX_ASSIGN_OR_RETURN(last.count,
+                            internal::SmallestFittingCount(0, before, last.count, last.bytes_after, budget_bytes,
+                                                           bytes_at));
     }
     ATEX_RETURN_IF_ERROR(ApplyMove(last, plan.prune_order, &state.asset, &state.write, &state.kept,
                                    plan.min_grid_resolution));

@@ -2,7 +2,7 @@
 // Not part of the public API.
 //
 // Every state is encoded (exact bytes; unchanged chunks come from the cache) and decoded
-// (exact stored values). On a GPU backend the decoded asset is rendered in full. On the
+// (exact stored values; unchanged streams come from a cache too). On a GPU backend the decoded asset is rendered in full. On the
 // CPU the probes are rendered incrementally against the current state
 // (incremental_probes.h): a candidate projects and composites only what its move changed.
 //
@@ -24,6 +24,7 @@
 #pragma once
 
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <vector>
 
@@ -64,21 +65,30 @@ class Measurer {
 
   // Renders the reference (`input` as given) and measures `initial`, which becomes the current state.
   StatusOr<Measured> Start(const Asset& input, const State& initial);
-  // Measures `next`, the current state after `move`. Encoding errors come back as they are
-  // (kOutOfRange: a stream the encoding cannot hold).
+  // Measures `next`, the current state after `move`: Prepare, then Score. Encoding errors
+  // come back as they are (kOutOfRange: a stream the encoding cannot hold).
   StatusOr<Candidate> Measure(const State& next, const Move& move);
+  // The CPU part of a measurement: encode, decode and (on the CPU path) which Gaussians the
+  // candidate changes. Several may run at once (BuildPlan prepares a state's proposals in
+  // parallel); none may run during Start, Score or Take, which change the current state.
+  StatusOr<Candidate> Prepare(const State& next, const Move& move);
+  // The distortion of a prepared candidate: the probe renders. One at a time.
+  Status Score(Candidate* candidate);
   // The candidate (measured at the current state) becomes the current state; returns its
   // measurement (with kRangeStableConfirmed, a range-stable one is rendered exactly first).
   StatusOr<Measured> Take(const State& next, const Candidate& candidate);
 
  private:
-  StatusOr<Candidate> Encode(const State& state);
+  StatusOr<Candidate> Encode(const State& state);  // thread-safe (timing_ under timing_mutex_)
   StatusOr<double> Distortion(const Asset& decoded, const CandidateMap& map,
                               std::shared_ptr<const IncrementalProbes::Pending>* pending);
 
   ProbeRenderer* renderer_;
   EncodeCache* chunks_;
+  // Most candidates decode to the current state's values but for one or two streams.
+  DecodeCache decoded_chunks_;
   MeasureTiming* timing_;
+  std::mutex timing_mutex_;  // Prepare's updates of timing_ (Score's run alone)
   PruneMeasure prune_;
   std::vector<Image> reference_;
   CpuProbeRenderer* cpu_ = nullptr;                 // CPU only

@@ -4,7 +4,9 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <optional>
+#include <thread>
 #include <tuple>
 
 #include "atex/fit.h"
@@ -24,8 +26,15 @@ using internal::Stopwatch;
 
 namespace {
 
-// The next move of every lever at `state` (prune and texture counts sized to the state).
-std::vector<Move> Proposals(const State& state, const PlanOptions& o) {
+// Step multipliers of the divisible levers (PlanOptions::step_growth): 1 until a lever wins
+// twice in a row.
+struct StepScale {
+  double prune = 1, textures = 1;
+};
+
+// The next move of every lever at `state` (prune and texture counts sized to the state and
+// the lever's step scale).
+std::vector<Move> Proposals(const State& state, const PlanOptions& o, const StepScale& scale) {
   std::vector<Move> moves;
   const Asset& a = state.asset;
   const size_t n = a.gaussians.size();
@@ -33,7 +42,8 @@ std::vector<Move> Proposals(const State& state, const PlanOptions& o) {
   if (allowed(Lever::kPrune) && n > 1) {
     Move m;
     m.lever = Lever::kPrune;
-    m.count = std::clamp<uint64_t>(static_cast<uint64_t>(o.prune_fraction * n), 1, n - 1);
+    const double fraction = std::min(o.prune_fraction * scale.prune, std::max(o.prune_fraction, 0.5));
+    m.count = std::clamp<uint64_t>(static_cast<uint64_t>(fraction * static_cast<double>(n)), 1, n - 1);
     moves.push_back(m);
   }
   if (allowed(Lever::kAllTextures) && a.textures && ShrinkableTexels(*a.textures) > 0) {
@@ -46,7 +56,8 @@ std::vector<Move> Proposals(const State& state, const PlanOptions& o) {
     for (size_t i = 0; i < a.textures->size(); ++i) growable += a.textures->heights[i] * a.textures->widths[i] > 1;
     Move m;
     m.lever = Lever::kTextures;
-    m.count = std::max<uint64_t>(1, static_cast<uint64_t>(o.texture_fraction * static_cast<double>(growable)));
+    const double fraction = std::min(o.texture_fraction * scale.textures, 1.0);
+    m.count = std::max<uint64_t>(1, static_cast<uint64_t>(fraction * static_cast<double>(growable)));
     moves.push_back(m);
   }
   if (allowed(Lever::kShDegree) && a.gaussians.sh_degree > 0) {
@@ -95,8 +106,9 @@ struct Cached {
 constexpr double kNoGain = std::numeric_limits<double>::infinity();
 struct Evaluated {
   Cached cost;
-  State next;           // the state after the move (kept only for the best fresh evaluation)
-  Candidate candidate;  // its measurement and decode
+  bool prepared = false;  // false: not a move at this state (cost stays kNoGain)
+  State next;             // the state after the move (kept only for the best fresh evaluation)
+  Candidate candidate;    // its measurement and decode
 };
 bool Better(const Cached& a, const Cached& b) {
   return a.ratio < b.ratio || (a.ratio == b.ratio && a.saving > b.saving);
@@ -108,6 +120,13 @@ Status CheckPlanInputs(const ProbeRenderer& renderer, const PlanOptions& options
       !(options.texture_fraction > 0 && options.texture_fraction <= 1)) {
     return MakeError(StatusCode::kInvalidArgument, "fit: step fractions must be in (0, 1)");
   }
+  if (!(options.step_growth >= 1 && options.step_growth <= 16)) {
+    return MakeError(StatusCode::kInvalidArgument, "fit: step growth ", options.step_growth, " outside [1, 16]");
+  }
+  if (options.parallel_candidates < 0 || options.parallel_candidates > 64) {
+    return MakeError(StatusCode::kInvalidArgument, "fit: parallel candidates ", options.parallel_candidates,
+                     " outside 0..64");
+  }
   if ((options.levers & ~kAllLevers) != 0 || options.levers == 0) {
     return MakeError(StatusCode::kInvalidArgument, "fit: the lever set ", options.levers,
                      " names no lever or an unknown one");
@@ -116,6 +135,28 @@ Status CheckPlanInputs(const ProbeRenderer& renderer, const PlanOptions& options
     return MakeError(StatusCode::kInvalidArgument, "fit: no probe views to measure distortion from");
   }
   return Status::Ok();
+}
+
+// fn(0) .. fn(count - 1), on one thread each when count > 1; results in order.
+template <typename Fn>
+std::vector<StatusOr<Evaluated>> PrepareAll(size_t count, const Fn& fn) {
+  std::vector<StatusOr<Evaluated>> results(count, Status(StatusCode::kInternal, "candidate not prepared"));
+  const auto run = [&](size_t i) {
+    try {
+      results[i] = fn(i);
+    } catch (const std::bad_alloc&) {
+      results[i] = Status(StatusCode::kLimitExceeded, "out of memory preparing a fit candidate");
+    }
+  };
+  if (count == 1) {
+    run(0);
+    return results;
+  }
+  std::vector<std::thread> threads;
+  threads.reserve(count);
+  for (size_t i = 0; i < count; ++i) threads.emplace_back(run, i);
+  for (std::thread& t : threads) t.join();
+  return results;
 }
 
 void ReportProgress(const PlanOptions& options, const Plan& plan, const Move& move, const Measured& current) {
@@ -149,34 +190,67 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   // Lazy greedy: each proposal keeps the cost per byte measured at an earlier state
   // (costs change slowly between moves); a stale best is measured again, and a move is
   // taken only when the best cost is a fresh one (measured at the current state).
-  const auto evaluate = [&](const Move& proposal) -> StatusOr<Evaluated> {
+  // An evaluation is prepared (the move applied to a copy of the state, encoded and decoded:
+  // CPU work that several proposals do at once) and then scored (the probe renders, one at
+  // a time, in proposal order: the plan does not depend on how many were prepared at once).
+  std::mutex timing_mutex;
+  double wave_busy = 0;  // apply + encode + decode seconds of the current wave's candidates
+  const auto prepare = [&](const Move& proposal) -> StatusOr<Evaluated> {
     Evaluated e;
     e.cost = Cached{kNoGain, 0, true};
-    Stopwatch clock;
+    Stopwatch clock, whole_clock;
+    struct Busy {  // adds this preparation's wall time to wave_busy, whichever way it returns
+      Stopwatch* clock;
+      double* busy;
+      std::mutex* mutex;
+      ~Busy() {
+        std::lock_guard<std::mutex> lock(*mutex);
+        *busy += clock->Lap();
+      }
+    } busy{&whole_clock, &wave_busy, &timing_mutex};
     e.next = state;
     const Status applied = ApplyMove(proposal, plan.prune_order, &e.next.asset, &e.next.write, &e.next.kept,
                                      options.min_grid_resolution);
-    plan.timing.apply_seconds += clock.Lap();
+    {
+      std::lock_guard<std::mutex> lock(timing_mutex);
+      plan.timing.apply_seconds += clock.Lap();
+    }
     if (!applied.ok()) return e;  // a move the state cannot take (e.g. nothing left to halve) is not a move
-    auto candidate = measurer.Measure(e.next, proposal);
+    auto candidate = measurer.Prepare(e.next, proposal);
     if (!candidate.ok()) {
       // A stream that an encoding cannot hold (f16 overflow) is simply not a move.
       if (candidate.status().code() == StatusCode::kOutOfRange) return e;
       return candidate.status();
     }
     e.candidate = std::move(*candidate);
-    const Measured& measured = e.candidate.measured;
-    if (measured.bytes >= current.bytes) return e;
-    const uint64_t saving = current.bytes - measured.bytes;
-    const double damage = std::max(0.0, measured.distortion - current.distortion);
-    e.cost = Cached{damage / static_cast<double>(saving), saving, true};
+    e.prepared = true;
     return e;
   };
+  const auto score = [&](Evaluated* e) -> Status {
+    if (!e->prepared) return Status::Ok();
+    ATEX_RETURN_IF_ERROR(measurer.Score(&e->candidate));
+    const Measured& measured = e->candidate.measured;
+    if (measured.bytes >= current.bytes) return Status::Ok();
+    const uint64_t saving = current.bytes - measured.bytes;
+    const double damage = std::max(0.0, measured.distortion - current.distortion);
+    e->cost = Cached{damage / static_cast<double>(saving), saving, true};
+    return Status::Ok();
+  };
+  const auto evaluate = [&](const Move& proposal) -> StatusOr<Evaluated> {
+    ATEX_ASSIGN_OR_RETURN(Evaluated e, prepare(proposal));
+    ATEX_RETURN_IF_ERROR(score(&e));
+    return e;
+  };
+  const size_t width = options.parallel_candidates > 0
+                           ? static_cast<size_t>(options.parallel_candidates)
+                           : std::clamp<size_t>(std::thread::hardware_concurrency(), 1, 4);
 
   std::map<MoveKey, Cached> cache;
+  StepScale scale;
+  std::optional<Lever> last_taken;
   while (current.bytes > options.floor_bytes) {
     Stopwatch propose_clock;
-    const std::vector<Move> proposals = Proposals(state, options);
+    const std::vector<Move> proposals = Proposals(state, options, scale);
     plan.timing.propose_seconds += propose_clock.Lap();
     if (proposals.empty()) break;
     // The best evaluation made at the current state, with its state and decoded asset.
@@ -187,10 +261,23 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
         best_fresh.emplace(KeyOf(p), std::move(e));
       }
     };
+    // The proposals never measured (all of them at the start, then a taken lever's next step),
+    // prepared `width` at a time.
+    std::vector<const Move*> unmeasured;
     for (const Move& p : proposals) {
-      if (cache.count(KeyOf(p)) == 0) {
-        ATEX_ASSIGN_OR_RETURN(Evaluated e, evaluate(p));
-        remember(p, std::move(e));
+      if (cache.count(KeyOf(p)) == 0) unmeasured.push_back(&p);
+    }
+    for (size_t begin = 0; begin < unmeasured.size(); begin += width) {
+      const size_t count = std::min(width, unmeasured.size() - begin);
+      wave_busy = 0;
+      Stopwatch wave_clock;
+      std::vector<StatusOr<Evaluated>> wave =
+          PrepareAll(count, [&](size_t i) { return prepare(*unmeasured[begin + i]); });
+      plan.timing.overlap_seconds += std::max(0.0, wave_busy - wave_clock.Lap());
+      for (size_t i = 0; i < count; ++i) {
+        if (!wave[i].ok()) return wave[i].status();
+        ATEX_RETURN_IF_ERROR(score(&*wave[i]));
+        remember(*unmeasured[begin + i], std::move(*wave[i]));
       }
     }
     // Each pass either takes a fresh best or refreshes a stale one, so proposals.size() + 1
@@ -223,6 +310,12 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
     state = std::move(taken.next);
     current = measured;
     plan.moves.push_back(move);
+    // A divisible lever that wins again takes a larger step next time; any other move resets.
+    const bool again = last_taken == move.lever;
+    if (!again) scale = StepScale{};
+    if (again && move.lever == Lever::kPrune) scale.prune = std::min(scale.prune * options.step_growth, 1e6);
+    if (again && move.lever == Lever::kTextures) scale.textures = std::min(scale.textures * options.step_growth, 1e6);
+    last_taken = move.lever;
     for (auto& entry : cache) entry.second.fresh = false;
     cache.erase(KeyOf(move));  // its next step is a different move (new count, new encoding)
     if (move.lever == Lever::kEncoding) {

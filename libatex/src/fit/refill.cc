@@ -2,6 +2,7 @@
 #include <optional>
 
 #include "atex/fit.h"
+#include "count_search.h"
 #include "plan_state.h"
 
 namespace atex::fit::internal {
@@ -47,32 +48,30 @@ class PrefixStates {
 };
 
 // The smallest count of moves[k] (the other moves as they are) whose output fits `budget`:
-// 0 if that fits, else found by bisection on [1, count); the recorded count is known to
-// fit. nullopt when no smaller count fits (the whole move is needed). `prefix` is the state
-// after moves[0, k), applied once, not once per trial: a texture move on a large asset
-// takes most of a second to apply.
-StatusOr<std::optional<Refill>> SmallestFittingCount(const State& prefix, const Plan& plan,
-                                                     const std::vector<Move>& moves, size_t k, uint64_t budget,
-                                                     EncodeCache* cache) {
-  // With a large slack the move is usually undone entirely: one trial instead of a bisection.
+// 0 if that fits, else searched on [1, count) (count_search.h); `full_bytes` is the size with
+// the whole count, known to fit. nullopt when no smaller count fits (the whole move is
+// needed). `prefix` is the state after moves[0, k), applied once, not once per trial: a
+// texture move on a large asset takes most of a second to apply.
+StatusOr<std::optional<Refill>> SmallestFittingRefill(const State& prefix, const Plan& plan,
+                                                      const std::vector<Move>& moves, size_t k, uint64_t budget,
+                                                      uint64_t full_bytes, EncodeCache* cache) {
+  // With a large slack the move is usually undone entirely: one trial instead of a search.
   ATEX_ASSIGN_OR_RETURN(State without, ApplyRange(prefix, plan, moves, k, moves.size(), k, 0));
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> without_bytes, EncodeAsset(without.asset, without.write, cache));
   if (without_bytes.size() <= budget) {
     return std::optional<Refill>(Refill{0, std::move(without), std::move(without_bytes)});
   }
-  uint64_t lo = 1, hi = moves[k].count;
-  std::optional<Refill> best;
-  while (lo < hi) {
-    const uint64_t mid = lo + (hi - lo) / 2;
-    ATEX_ASSIGN_OR_RETURN(State trial, ApplyRange(prefix, plan, moves, k, moves.size(), k, mid));
+  std::optional<Refill> best;  // the last fitting trial: the smallest count found to fit so far
+  const auto bytes_at = [&](uint64_t count) -> StatusOr<uint64_t> {
+    ATEX_ASSIGN_OR_RETURN(State trial, ApplyRange(prefix, plan, moves, k, moves.size(), k, count));
     ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, EncodeAsset(trial.asset, trial.write, cache));
-    if (trial_bytes.size() <= budget) {
-      hi = mid;
-      best = Refill{mid, std::move(trial), std::move(trial_bytes)};
-    } else {
-      lo = mid + 1;
-    }
-  }
+    const uint64_t size = trial_bytes.size();
+    if (size <= budget) best = Refill{count, std::move(trial), std::move(trial_bytes)};
+    return size;
+  };
+  ATEX_ASSIGN_OR_RETURN(const uint64_t count, SmallestFittingCount(0, without_bytes.size(), moves[k].count,
+                                                                     full_bytes, budget, bytes_at));
+  if (count == moves[k].count) return std::optional<Refill>();
   return best;
 }
 
@@ -104,7 +103,7 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
       continue;
     }
     ATEX_ASSIGN_OR_RETURN(std::optional<Refill> refill,
-                          SmallestFittingCount(prefix, plan, *moves, k, budget, cache));
+                          SmallestFittingRefill(prefix, plan, *moves, k, budget, bytes->size(), cache));
     if (!refill) break;  // move k is needed whole: the budget binds here
     *state = std::move(refill->state);
     *bytes = std::move(refill->bytes);
@@ -119,15 +118,17 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
   if (!earliest_changed) return Status::Ok();
   // The sizes recorded for the earliest changed move and later ones belong to the plan; measure
   // the real ones. (Their distortion stays the plan's estimate: ApplyPlan does not render.)
-  State replay = InitialState(asset, write);
-  for (size_t i = 0; i < moves->size(); ++i) {
+  // From the last checkpoint, not the input: every move before the earliest changed one is as
+  // it was when the checkpoint was taken.
+  // The last move (never changed here) ends at the output, whose size is known.
+  ATEX_ASSIGN_OR_RETURN(State replay, prefixes.Before(*moves, *earliest_changed));
+  for (size_t i = *earliest_changed; i + 1 < moves->size(); ++i) {
     ATEX_RETURN_IF_ERROR(ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept,
                                    plan.min_grid_resolution));
-    if (i >= *earliest_changed) {
-      ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> step_bytes, EncodeAsset(replay.asset, replay.write, cache));
-      (*moves)[i].bytes_after = step_bytes.size();
-    }
+    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> step_bytes, EncodeAsset(replay.asset, replay.write, cache));
+    (*moves)[i].bytes_after = step_bytes.size();
   }
+  moves->back().bytes_after = bytes->size();
   return Status::Ok();
 }
 

@@ -145,6 +145,8 @@ StatusOr<Fitted> Run::FitOnce(const Asset& start, const WriteOptions& start_writ
   p.seed = o_.seed;
   p.floor_bytes = quality_mode ? 0 : target;
   p.levers = o_.levers;
+  p.step_growth = o_.step_growth;
+  p.parallel_candidates = o_.parallel_candidates;
   p.progress = o_.progress;
   if (quality_mode) {
     p.accept_more = [&](const Asset& candidate, const Move&) -> StatusOr<bool> {
@@ -307,6 +309,10 @@ Status ValidateFitRunOptions(const FitRunOptions& o, bool have_dataset) {
   if (o.finetune > 0 && o.budgets.size() > 1) return bad("--finetune takes one budget");
   if (o.order_from != nullptr && !(o.keep_count > 0)) return bad("--order-from needs --keep-count");
   if ((o.levers & ~kAllLevers) != 0 || o.levers == 0) return bad("the lever set names no lever or an unknown one");
+  if (!(o.step_growth >= 1 && o.step_growth <= 16)) return bad("--step-growth ", o.step_growth, " is not in [1, 16]");
+  if (o.parallel_candidates < 0 || o.parallel_candidates > 64) {
+    return bad("--parallel-candidates ", o.parallel_candidates, " is not in 0..64");
+  }
   return Status::Ok();
 }
 

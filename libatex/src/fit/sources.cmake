@@ -4,6 +4,7 @@ list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/apply_plan.cc
   ${CMAKE_CURRENT_LIST_DIR}/budget.cc
   ${CMAKE_CURRENT_LIST_DIR}/candidate_map.cc
+  ${CMAKE_CURRENT_LIST_DIR}/count_search.cc
   ${CMAKE_CURRENT_LIST_DIR}/byte_size.cc
   ${CMAKE_CURRENT_LIST_DIR}/cpu_probes.cc
   ${CMAKE_CURRENT_LIST_DIR}/incremental_base.cc
@@ -21,7 +22,7 @@ list(APPEND ATEX_LIB_SOURCES
 function(atex_fit_tests)
   set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
   atex_add_test(NAME fit_test LABELS fit LIBS atex
-    SOURCES ${dir}/fit_test.cc ${dir}/fit_levers_test.cc ${dir}/fit_run_test.cc ${dir}/texture_shrink_test.cc ${dir}/fit_time_windows_test.cc)
+    SOURCES ${dir}/fit_test.cc ${dir}/fit_search_test.cc ${dir}/fit_levers_test.cc ${dir}/fit_run_test.cc ${dir}/texture_shrink_test.cc ${dir}/fit_time_windows_test.cc)
   atex_add_test(NAME cpu_probes_test LABELS fit SOURCES ${dir}/cpu_probes_test.cc LIBS atex)
   atex_add_test(NAME incremental_probes_test LABELS fit SOURCES ${dir}/incremental_probes_test.cc
                 ${dir}/incremental_full_test.cc LIBS atex)

@@ -1,0 +1,29 @@
+// The smallest count of a divisible move whose output fits a budget (ApplyPlan's last move,
+// RefillSlack's bisected moves). Not part of the public API.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+
+#include "atex/status.h"
+
+namespace atex::fit::internal {
+
+// The smallest count in (lo, hi] whose encoded size fits `budget`, given the sizes at the
+// ends: `lo_bytes` > budget (lo does not fit) and `hi_bytes` <= budget (hi fits). `bytes_at`
+// encodes the output with one count and returns its exact size; the caller keeps what it
+// needs of the fitting trials (the last fitting trial is always the answer's, unless the
+// answer is `hi` itself, which is never tried).
+//
+// Sizes fall almost linearly with a move's count (each unit removes a Gaussian or a texture
+// axis), so the next count tried is interpolated between the ends: on a Panoptic texture move
+// of 36,000 textures that takes 3 to 5 encodes where a bisection takes 16. When the
+// interpolation keeps landing on one side (sizes far from linear), every other trial is a
+// bisection step, so the search never takes more than about twice a bisection's encodes.
+// Like the bisection it replaces, it assumes sizes do not rise with the count; where they do
+// locally, it returns a count that fits whose predecessor does not.
+StatusOr<uint64_t> SmallestFittingCount(uint64_t lo, uint64_t lo_bytes, uint64_t hi, uint64_t hi_bytes,
+                                        uint64_t budget, const std::function<StatusOr<uint64_t>(uint64_t)>& bytes_at,
+                                        int* trials = nullptr);
+
+}  // namespace atex::fit::internal

@@ -1,0 +1,161 @@
+// The fitter's search speed-ups: the count search of ApplyPlan and the refill
+// (count_search.h), proposals prepared in parallel, and growing steps (PlanOptions).
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "atex/fit.h"
+#include "atex/train/backend.h"
+#include "fit/count_search.h"
+#include "fit/fit_test_util.h"
+
+namespace atex::fit {
+namespace {
+
+using internal::SmallestFittingCount;
+using testing::SmallAsset;
+
+// The smallest count in (lo, hi] whose size fits, by trying every one from hi down (the
+// search's answer on sizes that do not rise with the count).
+uint64_t Exhaustive(const std::vector<uint64_t>& sizes, uint64_t lo, uint64_t hi, uint64_t budget) {
+  uint64_t best = hi;
+  for (uint64_t c = hi; c > lo && sizes[c] <= budget; --c) best = c;
+  return best;
+}
+
+TEST(CountSearch, FindsTheBoundaryOfMonotoneSizesInFewTrials) {
+  std::mt19937_64 random(7);
+  int worst_trials = 0;
+  for (int round = 0; round < 300; ++round) {
+    // Sizes that fall with the count, nearly linearly (a prune or texture move), with steps
+    // of compression noise; some rounds far from linear (a kink: a stream changes codec).
+    const uint64_t hi = 2 + random() % 40000;
+    std::vector<uint64_t> sizes(hi + 1);
+    const bool kinked = round % 3 == 0;
+    uint64_t size = 10'000'000;
+    for (uint64_t c = 0; c <= hi; ++c) {
+      sizes[c] = size;
+      const uint64_t step = (kinked && c > hi / 5) ? 1 + random() % 3 : 20 + random() % 17;
+      size -= std::min<uint64_t>(size - 1, step);
+    }
+    const uint64_t budget = sizes[hi] + random() % (sizes[0] - sizes[hi]);
+    int calls = 0, trials = 0;
+    auto got = SmallestFittingCount(0, sizes[0], hi, sizes[hi], budget, [&](uint64_t c) -> StatusOr<uint64_t> {
+      ++calls;
+      EXPECT_GT(c, 0u);
+      EXPECT_LT(c, hi) << "the ends are never tried";
+      return sizes[c];
+    }, &trials);
+    ASSERT_TRUE(got.ok()) << got.status().ToString();
+    EXPECT_EQ(*got, Exhaustive(sizes, 0, hi, budget)) << "round " << round;
+    EXPECT_EQ(trials, calls);
+    // Never much worse than a bisection's ceil(log2(hi)) trials.
+    EXPECT_LE(trials, 2 * static_cast<int>(std::ceil(std::log2(static_cast<double>(hi)))) + 2) << round;
+    if (!kinked) worst_trials = std::max(worst_trials, trials);
+  }
+  // Near-linear sizes (the common case) take a handful of trials, not a bisection's 16.
+  EXPECT_LE(worst_trials, 8);
+}
+
+TEST(CountSearch, SizesThatRiseLocallyStillGiveAFittingCountWhosePredecessorDoesNot) {
+  // A compressed size can grow by a few bytes when one more unit is removed.
+  std::vector<uint64_t> sizes = {1000, 990, 995, 960, 970, 930, 900, 905, 880};
+  for (uint64_t budget = 880; budget < 1000; ++budget) {
+    auto got = SmallestFittingCount(0, sizes[0], 8, sizes[8], budget,
+                                    [&](uint64_t c) -> StatusOr<uint64_t> { return sizes[c]; });
+    ASSERT_TRUE(got.ok());
+    EXPECT_LE(sizes[*got], budget) << budget;
+    EXPECT_GT(sizes[*got - 1], budget) << budget;
+  }
+}
+
+TEST(CountSearch, EndsThatDoNotBracketTheBudgetAreABugNotAFit) {
+  const auto never = [](uint64_t) -> StatusOr<uint64_t> { return uint64_t{0}; };
+  EXPECT_EQ(SmallestFittingCount(0, 100, 10, 90, 80, never).status().code(), StatusCode::kInternal);
+  EXPECT_EQ(SmallestFittingCount(0, 100, 10, 90, 100, never).status().code(), StatusCode::kInternal);
+  EXPECT_EQ(SmallestFittingCount(5, 100, 5, 90, 95, never).status().code(), StatusCode::kInternal);
+  // A failing trial's error comes back as it is.
+  auto failing = SmallestFittingCount(0, 100, 10, 50, 75, [](uint64_t) -> StatusOr<uint64_t> {
+    return MakeError(StatusCode::kOutOfRange, "f16 overflow");
+  });
+  EXPECT_EQ(failing.status().code(), StatusCode::kOutOfRange);
+}
+
+struct Planned {
+  Plan plan;
+  uint64_t minimum = 0;
+};
+
+Planned PlanWith(int parallel, double growth, LeverSet levers = kDefaultLevers) {
+  const Asset asset = SmallAsset(container::SyntheticTextures::kMixed, 5);
+  auto backend = train::MakeCpuBackend();
+  ProbeRenderer renderer(backend.get(), OrbitProbes(asset, 4, 40, 30));
+  PlanOptions o;
+  o.write.write_stats = false;
+  auto minimum = MinimumBytes(asset, o.write, 4, levers);
+  EXPECT_TRUE(minimum.ok());
+  o.floor_bytes = *minimum;
+  o.levers = levers;
+  o.prune_fraction = 0.05;
+  o.texture_fraction = 0.05;
+  o.parallel_candidates = parallel;
+  o.step_growth = growth;
+  auto plan = BuildPlan(asset, &renderer, o);
+  EXPECT_TRUE(plan.ok()) << plan.status().ToString();
+  return {std::move(*plan), *minimum};
+}
+
+TEST(Plan, TheSamePlanWhateverTheCandidatesPreparedAtOnce) {
+  const Planned serial = PlanWith(1, 2.0), parallel = PlanWith(5, 2.0);
+  ASSERT_EQ(serial.plan.moves.size(), parallel.plan.moves.size());
+  for (size_t i = 0; i < serial.plan.moves.size(); ++i) {
+    const Move &a = serial.plan.moves[i], &b = parallel.plan.moves[i];
+    EXPECT_EQ(DescribeMove(a), DescribeMove(b)) << i;
+    EXPECT_EQ(a.bytes_after, b.bytes_after) << i;
+    EXPECT_EQ(a.distortion_after, b.distortion_after) << i;
+  }
+  EXPECT_EQ(serial.plan.timing.measurements, parallel.plan.timing.measurements);
+  EXPECT_EQ(serial.plan.timing.overlap_seconds, 0.0);
+}
+
+TEST(Plan, ALeverThatKeepsWinningTakesGrowingSteps) {
+  // Textures alone: every move is a texture move, so from the third on each step doubles
+  // (up to every growable texture) with growth 2, and stays at its fraction with growth 1.
+  const Planned fixed = PlanWith(1, 1.0, LeverBit(Lever::kTextures));
+  const Planned growing = PlanWith(1, 2.0, LeverBit(Lever::kTextures));
+  ASSERT_GE(fixed.plan.moves.size(), 4u);
+  ASSERT_GE(growing.plan.moves.size(), 4u);
+  // The same first two steps; then each is about twice the one before (the growable
+  // textures shrink a little in between).
+  EXPECT_EQ(growing.plan.moves[0].count, fixed.plan.moves[0].count);
+  EXPECT_EQ(growing.plan.moves[1].count, fixed.plan.moves[1].count);
+  EXPECT_GT(growing.plan.moves[2].count, growing.plan.moves[1].count * 3 / 2);
+  EXPECT_GT(growing.plan.moves[3].count, growing.plan.moves[2].count * 3 / 2);
+  for (size_t i = 1; i < fixed.plan.moves.size(); ++i) {
+    EXPECT_LE(fixed.plan.moves[i].count, fixed.plan.moves[i - 1].count) << "fixed fractions of fewer textures";
+  }
+  // Growing steps reach at least as far. (Here further: the fixed plan stops where a step of
+  // a few textures no longer shrinks the compressed file.)
+  EXPECT_LE(growing.plan.moves.back().bytes_after, fixed.plan.moves.back().bytes_after);
+}
+
+TEST(Plan, StepOptionsOutOfRangeAreRefused) {
+  const Asset asset = SmallAsset(container::SyntheticTextures::kMixed, 5);
+  auto backend = train::MakeCpuBackend();
+  ProbeRenderer renderer(backend.get(), OrbitProbes(asset, 2, 20, 20));
+  for (double growth : {0.5, 0.0, -2.0, 17.0, std::nan("")}) {
+    PlanOptions o;
+    o.step_growth = growth;
+    EXPECT_EQ(BuildPlan(asset, &renderer, o).status().code(), StatusCode::kInvalidArgument) << growth;
+  }
+  for (int parallel : {-1, 65}) {
+    PlanOptions o;
+    o.parallel_candidates = parallel;
+    EXPECT_EQ(BuildPlan(asset, &renderer, o).status().code(), StatusCode::kInvalidArgument) << parallel;
+  }
+}
+
+}  // namespace
+}  // namespace atex::fit
