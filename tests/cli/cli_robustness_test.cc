@@ -166,6 +166,10 @@ TEST_F(CliRobustness, FitOptionValues) {
       {"--keep-count 0.5 --probes 0", "--probes"},
       {"--keep-count 1.5", "--keep-count"},
       {"--budget 1MiB --seed -1", "--seed"},
+      {"--budget 1MiB --step-growth 0.5", "--step-growth"},
+      {"--budget 1MiB --step-growth nan", "--step-growth"},
+      {"--budget 1MiB --parallel-candidates -1", "--parallel-candidates"},
+      {"--budget 1MiB --parallel-candidates 65", "--parallel-candidates"},
   };
   for (const auto& [args, needle] : cases) {
     const std::string out = Path("out_{}.atex");

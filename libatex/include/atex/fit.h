@@ -249,9 +249,10 @@ struct Fitted {
 };
 
 // Applies moves of `plan` in order until the encoded asset fits `budget_bytes`; the
-// last move, if divisible, is bisected so that as little as needed is removed; if it is
-// indivisible, the moves before it are undone, latest first, to spend the slack again: a
-// divisible one is bisected on its count (the refill stops where one is only partly undone
+// last move, if divisible, is cut to the smallest count that fits (an interpolation search
+// on the encoded sizes), so that as little as needed is removed; if it is indivisible, the
+// moves before it are undone, latest first, to spend the slack again: a divisible one's count
+// is searched the same way (the refill stops where one is only partly undone
 // or needed whole: the budget binds), an indivisible one is undone whole when the output
 // without it still fits. When even the whole plan does not fit (its greedy search can stop a
 // few bytes above MinimumBytes: removing one more Gaussian may not shrink the compressed

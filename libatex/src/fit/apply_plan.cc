@@ -1,4 +1,4 @@
-// Applying a plan to a budget (fit.h): replay, bisection of the last divisible move, and the
+// Applying a plan to a budget (fit.h): replay, the count search of the last divisible move, and the
 // refill (refill.cc) below an indivisible one.
 #include <numeric>
 

@@ -2,9 +2,10 @@
 // Not part of the public API.
 //
 // Every state is encoded (exact bytes; unchanged chunks come from the cache) and decoded
-// (exact stored values; unchanged streams come from a cache too). On a GPU backend the decoded asset is rendered in full. On the
-// CPU the probes are rendered incrementally against the current state
-// (incremental_probes.h): a candidate projects and composites only what its move changed.
+// (exact stored values; unchanged streams come from a cache too). On a GPU backend the
+// decoded asset is rendered in full. On the CPU the probes are rendered incrementally against
+// the current state (incremental_probes.h): a candidate projects and composites only what its
+// move changed.
 //
 // Prune moves on the CPU are measured range-stable (PruneMeasure::kRangeStable): the
 // rendered asset is the current one less the removed Gaussians. A prune changes the

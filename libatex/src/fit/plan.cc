@@ -30,6 +30,16 @@ namespace {
 // twice in a row.
 struct StepScale {
   double prune = 1, textures = 1;
+  std::optional<Lever> last;  // the lever of the last move taken
+
+  // A divisible lever that wins again takes a larger step next time; any other move resets.
+  void Taken(Lever lever, double growth) {
+    const bool again = last == lever;
+    if (!again) prune = textures = 1;
+    if (again && lever == Lever::kPrune) prune = std::min(prune * growth, 1e6);
+    if (again && lever == Lever::kTextures) textures = std::min(textures * growth, 1e6);
+    last = lever;
+  }
 };
 
 // The next move of every lever at `state` (prune and texture counts sized to the state and
@@ -159,6 +169,97 @@ std::vector<StatusOr<Evaluated>> PrepareAll(size_t count, const Fn& fn) {
   return results;
 }
 
+// Applies proposals to the current state and measures them: prepared (the move applied to a
+// copy of the state, encoded and decoded: CPU work that several proposals do at once), then
+// scored (the probe renders, one at a time, in proposal order: the plan does not depend on how
+// many were prepared at once). `state` and `current` are BuildPlan's, read at each call.
+class CandidateEvaluator {
+ public:
+  CandidateEvaluator(const PlanOptions& options, Plan* plan, Measurer* measurer, const State* state,
+                     const Measured* current)
+      : options_(options), plan_(plan), measurer_(measurer), state_(state), current_(current),
+        width_(options.parallel_candidates > 0 ? static_cast<size_t>(options.parallel_candidates)
+                                               : std::clamp<size_t>(std::thread::hardware_concurrency(), 1, 4)) {}
+
+  StatusOr<Evaluated> Evaluate(const Move& proposal) {
+    ATEX_ASSIGN_OR_RETURN(Evaluated e, Prepare(proposal));
+    ATEX_RETURN_IF_ERROR(Score(&e));
+    return e;
+  }
+
+  // Evaluates `proposals`, `width_` prepared at a time, and hands each to `remember` in order.
+  template <typename Remember>
+  Status EvaluateAll(const std::vector<const Move*>& proposals, const Remember& remember) {
+    for (size_t begin = 0; begin < proposals.size(); begin += width_) {
+      const size_t count = std::min(width_, proposals.size() - begin);
+      wave_busy_ = 0;
+      Stopwatch wave_clock;
+      std::vector<StatusOr<Evaluated>> wave =
+          PrepareAll(count, [&](size_t i) { return Prepare(*proposals[begin + i]); });
+      plan_->timing.overlap_seconds += std::max(0.0, wave_busy_ - wave_clock.Lap());
+      for (size_t i = 0; i < count; ++i) {
+        if (!wave[i].ok()) return wave[i].status();
+        ATEX_RETURN_IF_ERROR(Score(&*wave[i]));
+        remember(*proposals[begin + i], std::move(*wave[i]));
+      }
+    }
+    return Status::Ok();
+  }
+
+ private:
+  // Thread-safe: several run at once between two moves.
+  StatusOr<Evaluated> Prepare(const Move& proposal) {
+    Evaluated e;
+    e.cost = Cached{kNoGain, 0, true};
+    Stopwatch clock, whole;
+    const auto busy = [&] {  // this preparation's wall time, for the wave's overlap
+      std::lock_guard<std::mutex> lock(mutex_);
+      wave_busy_ += whole.Lap();
+    };
+    e.next = *state_;
+    const Status applied = ApplyMove(proposal, plan_->prune_order, &e.next.asset, &e.next.write, &e.next.kept,
+                                     options_.min_grid_resolution);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      plan_->timing.apply_seconds += clock.Lap();
+    }
+    if (!applied.ok()) {  // a move the state cannot take (e.g. nothing left to halve) is not a move
+      busy();
+      return e;
+    }
+    auto candidate = measurer_->Prepare(e.next, proposal);
+    busy();
+    if (!candidate.ok()) {
+      // A stream that an encoding cannot hold (f16 overflow) is simply not a move.
+      if (candidate.status().code() == StatusCode::kOutOfRange) return e;
+      return candidate.status();
+    }
+    e.candidate = std::move(*candidate);
+    e.prepared = true;
+    return e;
+  }
+
+  Status Score(Evaluated* e) {
+    if (!e->prepared) return Status::Ok();
+    ATEX_RETURN_IF_ERROR(measurer_->Score(&e->candidate));
+    const Measured& measured = e->candidate.measured;
+    if (measured.bytes >= current_->bytes) return Status::Ok();
+    const uint64_t saving = current_->bytes - measured.bytes;
+    const double damage = std::max(0.0, measured.distortion - current_->distortion);
+    e->cost = Cached{damage / static_cast<double>(saving), saving, true};
+    return Status::Ok();
+  }
+
+  const PlanOptions& options_;
+  Plan* plan_;
+  Measurer* measurer_;
+  const State* state_;
+  const Measured* current_;
+  const size_t width_;
+  std::mutex mutex_;       // the timing sums written by preparations running at once
+  double wave_busy_ = 0;   // summed preparation seconds of the current wave
+};
+
 void ReportProgress(const PlanOptions& options, const Plan& plan, const Move& move, const Measured& current) {
   if (!options.progress) return;
   options.progress(FitProgress{static_cast<int>(plan.moves.size()), current.bytes, options.floor_bytes,
@@ -190,64 +291,10 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   // Lazy greedy: each proposal keeps the cost per byte measured at an earlier state
   // (costs change slowly between moves); a stale best is measured again, and a move is
   // taken only when the best cost is a fresh one (measured at the current state).
-  // An evaluation is prepared (the move applied to a copy of the state, encoded and decoded:
-  // CPU work that several proposals do at once) and then scored (the probe renders, one at
-  // a time, in proposal order: the plan does not depend on how many were prepared at once).
-  std::mutex timing_mutex;
-  double wave_busy = 0;  // apply + encode + decode seconds of the current wave's candidates
-  const auto prepare = [&](const Move& proposal) -> StatusOr<Evaluated> {
-    Evaluated e;
-    e.cost = Cached{kNoGain, 0, true};
-    Stopwatch clock, whole_clock;
-    struct Busy {  // adds this preparation's wall time to wave_busy, whichever way it returns
-      Stopwatch* clock;
-      double* busy;
-      std::mutex* mutex;
-      ~Busy() {
-        std::lock_guard<std::mutex> lock(*mutex);
-        *busy += clock->Lap();
-      }
-    } busy{&whole_clock, &wave_busy, &timing_mutex};
-    e.next = state;
-    const Status applied = ApplyMove(proposal, plan.prune_order, &e.next.asset, &e.next.write, &e.next.kept,
-                                     options.min_grid_resolution);
-    {
-      std::lock_guard<std::mutex> lock(timing_mutex);
-      plan.timing.apply_seconds += clock.Lap();
-    }
-    if (!applied.ok()) return e;  // a move the state cannot take (e.g. nothing left to halve) is not a move
-    auto candidate = measurer.Prepare(e.next, proposal);
-    if (!candidate.ok()) {
-      // A stream that an encoding cannot hold (f16 overflow) is simply not a move.
-      if (candidate.status().code() == StatusCode::kOutOfRange) return e;
-      return candidate.status();
-    }
-    e.candidate = std::move(*candidate);
-    e.prepared = true;
-    return e;
-  };
-  const auto score = [&](Evaluated* e) -> Status {
-    if (!e->prepared) return Status::Ok();
-    ATEX_RETURN_IF_ERROR(measurer.Score(&e->candidate));
-    const Measured& measured = e->candidate.measured;
-    if (measured.bytes >= current.bytes) return Status::Ok();
-    const uint64_t saving = current.bytes - measured.bytes;
-    const double damage = std::max(0.0, measured.distortion - current.distortion);
-    e->cost = Cached{damage / static_cast<double>(saving), saving, true};
-    return Status::Ok();
-  };
-  const auto evaluate = [&](const Move& proposal) -> StatusOr<Evaluated> {
-    ATEX_ASSIGN_OR_RETURN(Evaluated e, prepare(proposal));
-    ATEX_RETURN_IF_ERROR(score(&e));
-    return e;
-  };
-  const size_t width = options.parallel_candidates > 0
-                           ? static_cast<size_t>(options.parallel_candidates)
-                           : std::clamp<size_t>(std::thread::hardware_concurrency(), 1, 4);
+  CandidateEvaluator evaluator(options, &plan, &measurer, &state, &current);
 
   std::map<MoveKey, Cached> cache;
   StepScale scale;
-  std::optional<Lever> last_taken;
   while (current.bytes > options.floor_bytes) {
     Stopwatch propose_clock;
     const std::vector<Move> proposals = Proposals(state, options, scale);
@@ -261,25 +308,12 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
         best_fresh.emplace(KeyOf(p), std::move(e));
       }
     };
-    // The proposals never measured (all of them at the start, then a taken lever's next step),
-    // prepared `width` at a time.
+    // The proposals never measured: all of them at the start, then a taken lever's next step.
     std::vector<const Move*> unmeasured;
     for (const Move& p : proposals) {
       if (cache.count(KeyOf(p)) == 0) unmeasured.push_back(&p);
     }
-    for (size_t begin = 0; begin < unmeasured.size(); begin += width) {
-      const size_t count = std::min(width, unmeasured.size() - begin);
-      wave_busy = 0;
-      Stopwatch wave_clock;
-      std::vector<StatusOr<Evaluated>> wave =
-          PrepareAll(count, [&](size_t i) { return prepare(*unmeasured[begin + i]); });
-      plan.timing.overlap_seconds += std::max(0.0, wave_busy - wave_clock.Lap());
-      for (size_t i = 0; i < count; ++i) {
-        if (!wave[i].ok()) return wave[i].status();
-        ATEX_RETURN_IF_ERROR(score(&*wave[i]));
-        remember(*unmeasured[begin + i], std::move(*wave[i]));
-      }
-    }
+    ATEX_RETURN_IF_ERROR(evaluator.EvaluateAll(unmeasured, remember));
     // Each pass either takes a fresh best or refreshes a stale one, so proposals.size() + 1
     // passes always suffice.
     const Move* chosen = nullptr;
@@ -293,7 +327,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
       if (cost.fresh && best_fresh && best_fresh->first == KeyOf(*best)) {
         chosen = best;
       } else {
-        ATEX_ASSIGN_OR_RETURN(Evaluated e, evaluate(*best));
+        ATEX_ASSIGN_OR_RETURN(Evaluated e, evaluator.Evaluate(*best));
         remember(*best, std::move(e));
       }
     }
@@ -310,12 +344,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
     state = std::move(taken.next);
     current = measured;
     plan.moves.push_back(move);
-    // A divisible lever that wins again takes a larger step next time; any other move resets.
-    const bool again = last_taken == move.lever;
-    if (!again) scale = StepScale{};
-    if (again && move.lever == Lever::kPrune) scale.prune = std::min(scale.prune * options.step_growth, 1e6);
-    if (again && move.lever == Lever::kTextures) scale.textures = std::min(scale.textures * options.step_growth, 1e6);
-    last_taken = move.lever;
+    scale.Taken(move.lever, options.step_growth);
     for (auto& entry : cache) entry.second.fresh = false;
     cache.erase(KeyOf(move));  // its next step is a different move (new count, new encoding)
     if (move.lever == Lever::kEncoding) {
