@@ -208,7 +208,8 @@ atex::cli::Runner SetupFit(CLI::App& app) {
   cli::AddReal(app, "--step-growth", &a->step_growth, 1, 16,
                "A prune or texture step that wins again grows by this factor (1: fixed 10 % steps)");
   cli::AddInt(app, "--parallel-candidates", &a->parallel_candidates, 0, 64,
-              "Candidate moves prepared at once, each holding copies of the asset (0: min(4, cores); 1: serial)");
+              "Candidate moves prepared at once, each holding copies of the asset (0: up to 4 as cores and RAM allow; "
+              "1: serial)");
   cli::AddInt(app, "--eval-views", &a->eval_views, 0, 1 << 24, "Test views for PSNR (evenly spaced; 0 = all)");
   cli::AddInt(app, "--finetune", &a->finetune, 0, 100000000,
               "Retrain the trimmed model this many steps, then fit again (needs --data)");

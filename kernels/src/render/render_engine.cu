@@ -87,7 +87,7 @@ Status RenderEngine::Forward(const detail::CameraModel<float>& cam, const Render
   Impl& s = *impl_;
   cudaStream_t stream = s.stream;
   const int n = in.count;
-  s.last_count = n;
+  s.last_count = -1;  // set to n once the view is complete: a failed Forward leaves nothing to Backward
   ATEX_RETURN_IF_ERROR(s.Reserve(n, in.textured()));
   const Projected p = s.View();
   ATEX_RETURN_IF_ERROR(render::LaunchProject(cam, in, p, stream));
@@ -109,8 +109,9 @@ Status RenderEngine::Forward(const detail::CameraModel<float>& cam, const Render
     if (total > kMaxTileEntries) {
       return MakeError(StatusCode::kLimitExceeded, "a ", cam.width, "x", cam.height, " view of ", n,
                        " Gaussians has ", total, " (tile, Gaussian) pairs, more than the renderer's limit of ",
-                       kMaxTileEntries, "; their tile lists would take ", total * kBytesPerEntry / double(1ull << 30),
-                       " GiB asked; ", DeviceMemoryNote(), ". Use fewer or smaller Gaussians, or a smaller image");
+                       kMaxTileEntries, "; ", double(total) * kBytesPerEntry / double(1ull << 30),
+                       " GiB of tile lists asked; ", DeviceMemoryNote(),
+                       ". Use fewer or smaller Gaussians, or a smaller image");
     }
     size_t temp_bytes = 0;
     ATEX_CUDA_RETURN_IF_ERROR(
@@ -147,8 +148,11 @@ Status RenderEngine::Forward(const detail::CameraModel<float>& cam, const Render
   const size_t pixels = size_t(cam.width) * cam.height;
   ATEX_RETURN_IF_ERROR(s.final_transmittance.Resize(pixels));
   ATEX_RETURN_IF_ERROR(s.contributor_end.Resize(pixels));
-  return render::LaunchRasterForward(cam, in, p, s.ranges.data(), s.ids_sorted.data(), color, alpha,
-                                     s.final_transmittance.data(), s.contributor_end.data(), importance, stream);
+  ATEX_RETURN_IF_ERROR(render::LaunchRasterForward(cam, in, p, s.ranges.data(), s.ids_sorted.data(), color, alpha,
+                                                   s.final_transmittance.data(), s.contributor_end.data(), importance,
+                                                   stream));
+  s.last_count = n;
+  return Status::Ok();
 }
 
 Status RenderEngine::Backward(const detail::CameraModel<float>& cam, const RenderInputs& in, const float* grad_color,
@@ -172,7 +176,7 @@ Status RenderEngine::Backward(const detail::CameraModel<float>& cam, const Rende
 StatusOr<int> RenderEngine::VisibleCount() {
   // Visible Gaussians are those with at least one tile; count them from the tile counts.
   Impl& s = *impl_;
-  if (s.last_count == 0) return 0;
+  if (s.last_count <= 0) return 0;  // none, or the last Forward failed
   std::vector<uint32_t> touched;
   ATEX_RETURN_IF_ERROR(s.tiles_touched.Download(&touched, s.stream));
   int visible = 0;

@@ -117,8 +117,8 @@ class DecodeCache {
   ~DecodeCache();
   DecodeCache(const DecodeCache&) = delete;
   DecodeCache& operator=(const DecodeCache&) = delete;
-  uint64_t hits() const;
-  uint64_t misses() const;
+  uint64_t hits() const;    // streams taken from the cache
+  uint64_t misses() const;  // streams decoded (and then remembered)
   struct Impl;
 
  private:

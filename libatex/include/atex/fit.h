@@ -162,8 +162,8 @@ struct PlanOptions {
   // where one lever keeps winning, and needs fewer measurements there. 1: fixed fractions.
   double step_growth = 2.0;
   // Proposals prepared at once (apply, encode and decode; renders stay one at a time), each
-  // holding a few copies of the asset in memory: 0 picks min(4, hardware threads), 1 is
-  // serial. The plan is the same for any value.
+  // holding about three copies of the asset in memory: 0 picks min(4, hardware threads), fewer
+  // when those copies would not fit in half the RAM; 1 is serial. The plan is the same for any value.
   int parallel_candidates = 0;
   uint64_t seed = 6666;            // breaks importance ties deterministically
   int min_grid_resolution = 4;     // the grid lever stops here (spatial axes)

@@ -2,9 +2,11 @@
 // CRCs, then each chunk in an order where every count a later chunk relies on
 // has been backed by decoded data.
 #include <array>
+#include <atomic>
 #include <bit>
 #include <cstring>
 #include <list>
+#include <memory>
 #include <mutex>
 #include <optional>
 
@@ -20,20 +22,23 @@
 
 namespace atex {
 
-// Per chunk type, the most recently used versions first.
+// Per chunk type, the most recently used versions first, each type under its own lock (the
+// streams of one file are decoded in parallel, and so are the fitter's candidates). Values are
+// shared, so a hit is copied out after its lock is released.
 struct DecodeCache::Impl {
   struct Entry {
     std::vector<uint8_t> stored;  // the chunk's bytes as stored
     container::CodecParams codec;
     uint64_t raw_size = 0, rows = 0;
     uint32_t components = 0;
-    std::vector<float> values;  // what they decode to
+    std::shared_ptr<const std::vector<float>> values;  // what they decode to
   };
+  static constexpr size_t kKinds = static_cast<size_t>(container::ChunkId::kCount);
   explicit Impl(int entries) : entries_per_chunk(entries < 1 ? 1 : entries) {}
   const int entries_per_chunk;
-  mutable std::mutex mutex;
-  std::array<std::list<Entry>, static_cast<size_t>(container::ChunkId::kCount)> chunks;
-  uint64_t hits = 0, misses = 0;
+  mutable std::array<std::mutex, kKinds> mutexes;
+  std::array<std::list<Entry>, kKinds> chunks;
+  std::atomic<uint64_t> hits{0}, misses{0};
 
   static bool Same(const Entry& e, const uint8_t* stored, const container::TocEntry& toc, uint64_t rows,
                    uint32_t components) {
@@ -44,24 +49,34 @@ struct DecodeCache::Impl {
   }
   bool Find(container::ChunkId id, const uint8_t* stored, const container::TocEntry& toc, uint64_t rows,
             uint32_t components, std::vector<float>* values) {
-    std::lock_guard<std::mutex> lock(mutex);
-    auto& list = chunks[static_cast<size_t>(id)];
-    for (auto it = list.begin(); it != list.end(); ++it) {
-      if (Same(*it, stored, toc, rows, components)) {
-        *values = it->values;
-        list.splice(list.begin(), list, it);
-        ++hits;
-        return true;
+    std::shared_ptr<const std::vector<float>> found;
+    {
+      const size_t k = static_cast<size_t>(id);
+      std::lock_guard<std::mutex> lock(mutexes[k]);
+      auto& list = chunks[k];
+      for (auto it = list.begin(); it != list.end(); ++it) {
+        if (Same(*it, stored, toc, rows, components)) {
+          found = it->values;
+          list.splice(list.begin(), list, it);
+          break;
+        }
       }
     }
-    ++misses;
-    return false;
+    if (!found) {
+      ++misses;
+      return false;
+    }
+    ++hits;
+    *values = *found;
+    return true;
   }
   void Add(container::ChunkId id, const uint8_t* stored, const container::TocEntry& toc, uint64_t rows,
            uint32_t components, const std::vector<float>& values) {
-    Entry e{std::vector<uint8_t>(stored, stored + toc.stored_size), toc.codec, toc.raw_size, rows, components, values};
-    std::lock_guard<std::mutex> lock(mutex);
-    auto& list = chunks[static_cast<size_t>(id)];
+    Entry e{std::vector<uint8_t>(stored, stored + toc.stored_size), toc.codec, toc.raw_size, rows, components,
+            std::make_shared<const std::vector<float>>(values)};
+    const size_t k = static_cast<size_t>(id);
+    std::lock_guard<std::mutex> lock(mutexes[k]);
+    auto& list = chunks[k];
     list.push_front(std::move(e));
     while (list.size() > static_cast<size_t>(entries_per_chunk)) list.pop_back();
   }
@@ -69,14 +84,8 @@ struct DecodeCache::Impl {
 
 DecodeCache::DecodeCache(int entries_per_chunk) : impl_(new Impl(entries_per_chunk)) {}
 DecodeCache::~DecodeCache() { delete impl_; }
-uint64_t DecodeCache::hits() const {
-  std::lock_guard<std::mutex> lock(impl_->mutex);
-  return impl_->hits;
-}
-uint64_t DecodeCache::misses() const {
-  std::lock_guard<std::mutex> lock(impl_->mutex);
-  return impl_->misses;
-}
+uint64_t DecodeCache::hits() const { return impl_->hits.load(); }
+uint64_t DecodeCache::misses() const { return impl_->misses.load(); }
 
 namespace container {
 namespace {

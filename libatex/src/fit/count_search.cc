@@ -13,31 +13,29 @@ StatusOr<uint64_t> SmallestFittingCount(uint64_t lo, uint64_t lo_bytes, uint64_t
     return MakeError(StatusCode::kInternal, "count search: the ends (", lo, ": ", lo_bytes, " bytes, ", hi, ": ",
                      hi_bytes, " bytes) do not bracket the budget of ", budget);
   }
-  int streak = 0;         // consecutive interpolated trials that moved the same end
-  bool last_fit = false;  // which end the last trial moved
+  // An interpolated guess that does not halve the interval is followed by a bisection step, so
+  // every two trials at least halve it: at most about twice a bisection's trials.
+  bool bisect = false;
   int count = 0;
   while (hi - lo > 1) {
-    const bool bisect = streak >= 2;  // the interpolation stalls on one side: bisect once
-    uint64_t next = lo + (hi - lo) / 2;
+    const uint64_t width = hi - lo;
+    uint64_t next = lo + width / 2;
     if (!bisect) {
       // Where the straight line between the ends crosses the budget (rounded up, towards hi).
       const double f = static_cast<double>(lo_bytes - budget) / static_cast<double>(lo_bytes - hi_bytes);
-      const auto step = static_cast<uint64_t>(std::ceil(f * static_cast<double>(hi - lo)));
-      next = std::clamp<uint64_t>(lo + step, lo + 1, hi - 1);
+      const double step = std::ceil(f * static_cast<double>(width));
+      next = lo + static_cast<uint64_t>(std::clamp(step, 1.0, static_cast<double>(width - 1)));
     }
     ATEX_ASSIGN_OR_RETURN(const uint64_t bytes, bytes_at(next));
     ++count;
-    const bool fits = bytes <= budget;
-    streak = bisect ? 0 : (streak > 0 && fits == last_fit ? streak + 1 : 1);
-    last_fit = fits;
-    if (fits) {
+    if (bytes <= budget) {
       hi = next;
       hi_bytes = bytes;
     } else {
       lo = next;
-      // A size at or below the fitting end's (not monotone here): keep the line's slope positive.
-      lo_bytes = std::max(bytes, hi_bytes + 1);
+      lo_bytes = bytes;  // > budget >= hi_bytes: the line keeps a positive slope
     }
+    bisect = !bisect && (hi - lo) * 2 > width;
   }
   if (trials != nullptr) *trials = count;
   return hi;

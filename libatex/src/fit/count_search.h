@@ -18,11 +18,14 @@ namespace atex::fit::internal {
 // Sizes fall almost linearly with a move's count (each unit removes a Gaussian or a texture
 // axis), so the next count tried is interpolated between the ends. A bisection of a Panoptic
 // texture move (36,000 textures) takes 16 encodes; on near-linear sizes with compression noise
-// this search takes at most 8 (CountSearch.FindsTheBoundaryOfMonotoneSizesInFewTrials). When
-// the interpolation keeps landing on one side (sizes far from linear), every third trial is a
-// bisection step, so the search never takes more than about twice a bisection's encodes.
-// Like the bisection it replaces, it assumes sizes do not rise with the count; where they do
-// locally, it returns a count that fits whose predecessor does not.
+// this search takes at most 8 (CountSearch.FindsTheBoundaryOfMonotoneSizesInFewTrials). A guess
+// that does not halve the interval (sizes far from linear) is followed by a bisection step, so
+// the search never takes more than about twice a bisection's encodes. Like the bisection it
+// replaces, it assumes sizes do not rise with the count; where they do locally, it returns a
+// count that fits whose predecessor does not.
+//
+// Errors: kInternal when the ends do not bracket the budget as stated (a bug of the caller);
+// an error of `bytes_at` comes back as it is.
 StatusOr<uint64_t> SmallestFittingCount(uint64_t lo, uint64_t lo_bytes, uint64_t hi, uint64_t hi_bytes,
                                         uint64_t budget, const std::function<StatusOr<uint64_t>(uint64_t)>& bytes_at,
                                         int* trials = nullptr);

@@ -59,6 +59,23 @@ TEST(CountSearch, FindsTheBoundaryOfMonotoneSizesInFewTrials) {
   EXPECT_LE(worst_trials, 8);
 }
 
+TEST(CountSearch, AStepInTheSizesTakesAtMostTwiceABisection) {
+  // Far from linear: a huge size at count 0, one byte over the budget below t, one under from t
+  // on. Interpolation alone would creep towards t from above (found by review: 43 trials for
+  // t = 2 with a rule that bisected only after two guesses on one side).
+  const uint64_t hi = 65536, budget = 1'000'000;
+  for (uint64_t t : {1ull, 2ull, 100ull, 30000ull, 65535ull}) {
+    const auto bytes_at = [&](uint64_t c) -> StatusOr<uint64_t> {
+      return c == 0 ? uint64_t{1} << 40 : (c < t ? budget + 1 : budget - 1);
+    };
+    int trials = 0;
+    auto got = SmallestFittingCount(0, uint64_t{1} << 40, hi, budget - 1, budget, bytes_at, &trials);
+    ASSERT_TRUE(got.ok());
+    EXPECT_EQ(*got, t);
+    EXPECT_LE(trials, 2 * 16 + 1) << "t = " << t;
+  }
+}
+
 TEST(CountSearch, SizesThatRiseLocallyStillGiveAFittingCountWhosePredecessorDoesNot) {
   // A compressed size can grow by a few bytes when one more unit is removed.
   std::vector<uint64_t> sizes = {1000, 990, 995, 960, 970, 930, 900, 905, 880};

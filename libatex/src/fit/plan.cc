@@ -6,9 +6,11 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <system_error>
 #include <thread>
 #include <tuple>
 
+#include "atex/file_io.h"
 #include "atex/fit.h"
 #include "levers.h"
 #include "measure.h"
@@ -147,7 +149,8 @@ Status CheckPlanInputs(const ProbeRenderer& renderer, const PlanOptions& options
   return Status::Ok();
 }
 
-// fn(0) .. fn(count - 1), on one thread each when count > 1; results in order.
+// fn(0) .. fn(count - 1), on one thread each when count > 1; results in order. An exception
+// becomes the candidate's error; when a thread cannot be started, the rest run here, serially.
 template <typename Fn>
 std::vector<StatusOr<Evaluated>> PrepareAll(size_t count, const Fn& fn) {
   std::vector<StatusOr<Evaluated>> results(count, Status(StatusCode::kInternal, "candidate not prepared"));
@@ -156,17 +159,37 @@ std::vector<StatusOr<Evaluated>> PrepareAll(size_t count, const Fn& fn) {
       results[i] = fn(i);
     } catch (const std::bad_alloc&) {
       results[i] = Status(StatusCode::kLimitExceeded, "out of memory preparing a fit candidate");
+    } catch (const std::exception& e) {
+      results[i] = Status(StatusCode::kInternal, StrCat("preparing a fit candidate: ", e.what()));
     }
   };
-  if (count == 1) {
-    run(0);
-    return results;
-  }
   std::vector<std::thread> threads;
   threads.reserve(count);
-  for (size_t i = 0; i < count; ++i) threads.emplace_back(run, i);
+  size_t started = 0;
+  if (count > 1) {
+    try {
+      for (; started < count; ++started) threads.emplace_back(run, started);
+    } catch (const std::system_error&) {
+      // No more threads: the candidates not started are prepared on this one.
+    }
+  }
+  for (size_t i = started; i < count; ++i) run(i);
   for (std::thread& t : threads) t.join();
   return results;
+}
+
+// How many candidates to prepare at once: PlanOptions::parallel_candidates, or for 0 the
+// cores (at most 4), fewer when that many copies of the asset would not fit in half the
+// machine's memory (each candidate holds about three: the state's copy, its file, its decode).
+size_t CandidatesAtOnce(const PlanOptions& options, const Asset& asset) {
+  if (options.parallel_candidates > 0) return static_cast<size_t>(options.parallel_candidates);
+  const Gaussians& g = asset.gaussians;
+  uint64_t bytes = sizeof(float) * (g.positions.size() + g.rotations.size() + g.log_scales.size() +
+                                    g.opacity_logits.size() + g.sh.size() + g.time_windows.size());
+  if (asset.textures) bytes += sizeof(float) * asset.textures->texels.size();
+  const uint64_t per_candidate = 3 * std::max<uint64_t>(bytes, 1);
+  const uint64_t fit = MemoryLimit(UINT64_MAX) / per_candidate;
+  return std::clamp<size_t>(std::min<uint64_t>(fit, std::thread::hardware_concurrency()), 1, 4);
 }
 
 // Applies proposals to the current state and measures them: prepared (the move applied to a
@@ -178,9 +201,9 @@ class CandidateEvaluator {
   CandidateEvaluator(const PlanOptions& options, Plan* plan, Measurer* measurer, const State* state,
                      const Measured* current)
       : options_(options), plan_(plan), measurer_(measurer), state_(state), current_(current),
-        width_(options.parallel_candidates > 0 ? static_cast<size_t>(options.parallel_candidates)
-                                               : std::clamp<size_t>(std::thread::hardware_concurrency(), 1, 4)) {}
+        width_(CandidatesAtOnce(options, state->asset)) {}
 
+  // One proposal, prepared and scored (the lazy greedy's refresh of a stale best).
   StatusOr<Evaluated> Evaluate(const Move& proposal) {
     ATEX_ASSIGN_OR_RETURN(Evaluated e, Prepare(proposal));
     ATEX_RETURN_IF_ERROR(Score(&e));
