@@ -34,9 +34,15 @@ nvidia-smi topo -m > "$out/topology.txt" 2>&1 || true
 head -6 "$out/topology.txt"
 ngpus=$(nvidia-smi --query-gpu=index --format=csv,noheader | wc -l)
 # First the two-GPU gradient test (kernels/tests/nccl_data_parallel_test.cc): seconds.
-"$(find "$BUILD" -name nccl_data_parallel_test -type f -perm -u+x | head -1)" 2>&1 | tee "$out/nccl_test.log" | tail -3
+nccl_test=$(find "$BUILD" -name nccl_data_parallel_test -type f -perm -u+x | head -1)
+if [ -n "$nccl_test" ]; then  # an A/B run of an older build may come without it
+  "$nccl_test" 2>&1 | tee "$out/nccl_test.log" | tail -3
+fi
 # shellcheck disable=SC2206  # MULTI_GPU_ARGS is words
 extra=(${MULTI_GPU_ARGS:-})
+# Fine steps of the scaling and memory runs: 300, or MULTI_GPU_FINE (enough steps for every image
+# to be drawn, e.g. 1000, make the peaks comparable: a device keeps the images it has drawn).
+scale_fine=${MULTI_GPU_FINE:-300}
 common=(--data "$bb" --stage 1 --force --json --set stage1.coarse_iterations=200 --set eval_every=0
         --set checkpoint_every=0 "${extra[@]}")
 
@@ -74,7 +80,7 @@ if [ "$phase" = memory ]; then
       { echo "MULTI_GPU_MEMORY_VARIANTS=$MULTI_GPU_MEMORY_VARIANTS names a variant not in: ${variants[*]%%:*}" >&2; exit 2; }
     variants=("${kept[@]}")
   fi
-  run mem_1gpu --gpus 0 --out "$out/mem_1gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=4
+  run mem_1gpu --gpus 0 --out "$out/mem_1gpu.atex" --set stage1.fine_iterations="$scale_fine" --set stage1.batch_size=4
   names="mem_1gpu"
   for v in "${variants[@]}"; do
     name=mem_2gpu_${v%%:*}
@@ -82,7 +88,7 @@ if [ "$phase" = memory ]; then
     (
       # shellcheck disable=SC2086,SC2163  # the settings are words (VAR=VALUE); the ranks inherit them
       [ -n "$settings" ] && export $settings
-      run "$name" --gpus 0,1 --out "$out/$name.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=8
+      run "$name" --gpus 0,1 --out "$out/$name.atex" --set stage1.fine_iterations="$scale_fine" --set stage1.batch_size=8
     ) || { echo "variant $name failed: left out of memory.json"; continue; }
     names="$names $name"
   done
@@ -107,17 +113,17 @@ PY
   exit 0
 fi
 
-# (a) scaling: batch per GPU fixed at 4, 300 fine steps.
-run scale_1gpu --gpus 0 --out "$out/scale_1gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=4
-run scale_2gpu --gpus 0,1 --out "$out/scale_2gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=8
+# (a) scaling: batch per GPU fixed at 4, MULTI_GPU_FINE fine steps.
+run scale_1gpu --gpus 0 --out "$out/scale_1gpu.atex" --set stage1.fine_iterations="$scale_fine" --set stage1.batch_size=4
+run scale_2gpu --gpus 0,1 --out "$out/scale_2gpu.atex" --set stage1.fine_iterations="$scale_fine" --set stage1.batch_size=8
 # On four or more GPUs, (a) also with 4 (batch 16) and, where there are 8, with 8 (batch 32).
 scales="scale_1gpu scale_2gpu"
 if [ "$ngpus" -ge 4 ]; then
-  run scale_4gpu --gpus 0,1,2,3 --out "$out/scale_4gpu.atex" --set stage1.fine_iterations=300 --set stage1.batch_size=16
+  run scale_4gpu --gpus 0,1,2,3 --out "$out/scale_4gpu.atex" --set stage1.fine_iterations="$scale_fine" --set stage1.batch_size=16
   scales="$scales scale_4gpu"
 fi
 if [ "$ngpus" -ge 8 ]; then
-  run scale_8gpu --gpus 0,1,2,3,4,5,6,7 --out "$out/scale_8gpu.atex" --set stage1.fine_iterations=300 \
+  run scale_8gpu --gpus 0,1,2,3,4,5,6,7 --out "$out/scale_8gpu.atex" --set stage1.fine_iterations="$scale_fine" \
     --set stage1.batch_size=32
   scales="$scales scale_8gpu"
 fi
@@ -131,6 +137,14 @@ for name in sys.argv[2:]:
     rows[name] = {"wall_s": float(open(os.path.join(out, name + ".wall")).read()),
                   "fine_seconds": seconds.get("fine"), "fine_steps": steps.get("fine")}
     rows[name]["fine_steps_per_s"] = rows[name]["fine_steps"] / rows[name]["fine_seconds"]
+    # Peak memory per GPU (nvidia-smi, every 200 ms), the GPUs the run used only.
+    peak = {}
+    for line in open(os.path.join(out, name + ".memory.csv")):
+        parts = [p.strip() for p in line.split(",")]
+        if len(parts) == 2 and parts[1].isdigit() and int(parts[1]) > 0:
+            peak[int(parts[0])] = max(peak.get(int(parts[0]), 0), int(parts[1]))
+    gpus = int(name.split("_")[1].rstrip("gpu"))
+    rows[name]["peak_mib_per_gpu"] = {k: v for k, v in sorted(peak.items()) if k < gpus}
 # Step rate against one GPU; with the batch grown with the GPU count, views/s is that times the count.
 one = rows["scale_1gpu"]["fine_steps_per_s"]
 summary = {"runs": rows}
@@ -138,6 +152,9 @@ for name in sys.argv[3:]:
     gpus = int(name.split("_")[1].rstrip("gpu"))
     summary["step_rate_%dgpu_over_1gpu" % gpus] = rows[name]["fine_steps_per_s"] / one
     summary["views_per_s_%dgpu_over_1gpu" % gpus] = gpus * rows[name]["fine_steps_per_s"] / one
+    peaks, one_peak = rows[name]["peak_mib_per_gpu"], rows["scale_1gpu"]["peak_mib_per_gpu"]
+    if peaks and one_peak:
+        summary["peak_per_gpu_%dgpu_over_1gpu" % gpus] = max(peaks.values()) / max(one_peak.values())
 print(json.dumps(summary, indent=1))
 PY
   exit 0

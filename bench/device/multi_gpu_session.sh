@@ -24,6 +24,10 @@
 # With .fuzzkit/kit.tar.xz (bench/device/fuzz_kit.sh pack build-fuzz fuzz_gltf,fuzz_pth) and
 # .fuzzcorpus (their corpora), issue 24's fuzz campaign of those two targets runs niced on half
 # the cores during step 2 (it ends before step 4); OUT/corpus.tgz holds the corpus's new inputs.
+# MGS_TESTS: more test executables (CMake targets) to build and run first, e.g. the CUDA parity test
+# of a change the steps measure. MGS_SEEDS: the two seeds of step 2 (default "6666 1"; the first is checkpointed and resumed);
+# MGS_STEPS: which of the steps 1 to 4 run (default "1 2 3 4"); MGS_PROFILE=0 leaves out step 1's
+# profiled runs. Step 1's scaling rows carry each run's peak memory per GPU (scale/multi_gpu.json).
 # The steps run the scripts of the source tree: leave bench/device unchanged between the calls.
 source "$(dirname "$0")/common.sh"
 phase=$1 out=$2
@@ -45,7 +49,7 @@ prepare() {
   fi
   [ -d .oldsrc ] && { build_old 16 > "$s/build_old.log" 2>&1 || echo "build-old failed" >> "$s/steps.log"; } &
   BUILD_TREE_OPTIONS="-DATEX_NCCL=ON -DATEX_TESTS=ON -DATEX_BENCHMARKS=OFF" \
-    build_tree . "$BUILD" "$(nproc)" atex_cli nccl_data_parallel_test > "$s/build.log" 2>&1 ||
+    build_tree . "$BUILD" "$(nproc)" atex_cli nccl_data_parallel_test ${MGS_TESTS:-} > "$s/build.log" 2>&1 ||
     { echo "build failed" >> "$s/steps.log"; tail -20 "$s/build.log"; exit 1; }
   wait
 }
@@ -98,8 +102,15 @@ steps() {
   }
   nvidia-smi --query-gpu=index,name,driver_version --format=csv,noheader > "$s/gpu.txt"
   nvidia-smi topo -m > "$s/topology.txt" 2>&1
+  local seeds=(${MGS_SEEDS:-6666 1}) wanted=" ${MGS_STEPS:-1 2 3 4} "
+  local a=${seeds[0]} b=${seeds[1]}
+  local t
+  for t in ${MGS_TESTS:-}; do  # before the timed steps, alone on the machine
+    "$(find "$BUILD" -name "$t" -type f -perm -u+x | head -1)" > "$s/test_$t.log" 2>&1
+    note "$t rc=$?"
+  done
   note "step 1: gradient test, scaling, profile"
-  if ! grep -q '"scale_4gpu"' "$s/scale/multi_gpu.json" 2>/dev/null; then
+  if [[ $wanted == *" 1 "* ]] && ! grep -q '"scale_4gpu"' "$s/scale/multi_gpu.json" 2>/dev/null; then
     "$(find "$BUILD" -name nccl_data_parallel_test -type f -perm -u+x | head -1)" > "$s/nccl_test.log" 2>&1
     note "nccl_data_parallel_test rc=$?"
     MULTI_GPU_PHASE=scale MULTI_GPU_ARGS="--set stage1.init_method=auto" bench/device/multi_gpu.sh "$s/scale" \
@@ -110,6 +121,7 @@ steps() {
                --set stage1.coarse_iterations=200 --set stage1.fine_iterations=300 --set eval_every=0)
   local gpus
   for gpus in 0,1 0,1,2,3; do
+    [[ $wanted == *" 1 "* ]] && [ "${MGS_PROFILE:-1}" != 0 ] || break
     local n=$(( ${#gpus} / 2 + 1 ))
     grep -q '"all_reduce_ms"' "$s/profile_${n}gpu.train.json" 2>/dev/null && continue
     "$atex" train "${short[@]}" --gpus $gpus --set stage1.batch_size=$(( 4 * n )) --out "$s/profile_${n}gpu.atex" \
@@ -126,29 +138,30 @@ steps() {
     ) &
     fuzz_pid=$!
   fi
-  note "step 2: quality round one"
   local half=(--checkpoint-every 7000) pids=()
-  train q1_s6666 --gpus 0 --set seed=6666 --checkpoint-dir "$s/ckpt_q1_s6666" "${half[@]}" & pids+=($!)
-  train q1_s1 --gpus 1 --set seed=1 & pids+=($!)
-  train q2_s6666 --gpus 2,3 --set seed=6666 --checkpoint-dir "$s/ckpt_q2_s6666" "${half[@]}" & pids+=($!)
-  wait "${pids[@]}"
-  note "quality round two"
-  pids=()
-  train q2_s1 --gpus 0,1 --set seed=1 & pids+=($!)
-  (
-    train resume_2to1 --gpus 2 --resume "$s/ckpt_q2_s6666"
-    train resume_1to2 --gpus 2,3 --resume "$s/ckpt_q1_s6666"
-  ) & pids+=($!)
-  wait "${pids[@]}"
-  note "step 3: memory"
-  MULTI_GPU_MEMORY_VARIANTS=default,ctas_4_simple_1mib \
+  if [[ $wanted == *" 2 "* ]]; then
+    note "step 2: quality round one"
+    train "q1_s$a" --gpus 0 --set seed="$a" --checkpoint-dir "$s/ckpt_q1_s$a" "${half[@]}" & pids+=($!)
+    train "q1_s$b" --gpus 1 --set seed="$b" & pids+=($!)
+    train "q2_s$a" --gpus 2,3 --set seed="$a" --checkpoint-dir "$s/ckpt_q2_s$a" "${half[@]}" & pids+=($!)
+    wait "${pids[@]}"
+    note "quality round two"
+    pids=()
+    train "q2_s$b" --gpus 0,1 --set seed="$b" & pids+=($!)
+    (
+      train resume_2to1 --gpus 2 --resume "$s/ckpt_q2_s$a"
+      train resume_1to2 --gpus 2,3 --resume "$s/ckpt_q1_s$a"
+    ) & pids+=($!)
+    wait "${pids[@]}"
+  fi
+  [[ $wanted == *" 3 "* ]] && note "step 3: memory" && MULTI_GPU_MEMORY_VARIANTS=default,ctas_4_simple_1mib \
     MULTI_GPU_PHASE=memory MULTI_GPU_ARGS="--set stage1.init_method=auto" bench/device/multi_gpu.sh "$s/memory" \
     > "$s/memory.log" 2>&1
   note "memory rc=$?"
   # Issue 23's timed fits: fit_panoptic.sh trains its own short models (without fast-object
   # Gaussians, which the old CLI cannot read; the 1-GPU runs above have them), then fits them
   # with the old and the new CLI, alone on the machine once the fuzzing is over.
-  if [ -x build-old/bin/atex ] && [ ! -s "$s/fit/fit_panoptic.jsonl" ]; then
+  if [[ $wanted == *" 4 "* ]] && [ -x build-old/bin/atex ] && [ ! -s "$s/fit/fit_panoptic.jsonl" ]; then
     note "step 4: timed fits"
     [ -n "$fuzz_pid" ] && wait "$fuzz_pid"
     rm -rf out/fitp  # models of another script or an earlier attempt: not reused

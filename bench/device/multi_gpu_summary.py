@@ -1,13 +1,17 @@
 #!/usr/bin/env python3
 """Summary of bench/device/multi_gpu_session.sh's rows (issue 25): scaling, the all-reduce's share
 of a step, quality and wall time at the defaults (two seeds on 1 and 2 GPUs), resume across GPU
-counts, and the memory phase. Usage: multi_gpu_summary.py DIR > DIR/summary.json"""
+counts, and the memory phase. Usage: multi_gpu_summary.py DIR > DIR/summary.json
+MGS_SEEDS (two seeds, the first the checkpointed one; default "6666 1") names the runs, as in
+multi_gpu_session.sh."""
 import json
 import os
 import statistics
 import sys
 
 d = sys.argv[1]
+seeds = os.environ.get("MGS_SEEDS", "6666 1").split()
+first = "s" + seeds[0]
 
 
 def load(name):
@@ -35,7 +39,8 @@ for gpus in (1, 2, 4):
 summary["profile_per_step"] = profile
 
 runs = {}
-for name in ["q1_s6666", "q1_s1", "q2_s6666", "q2_s1", "resume_2to1", "resume_1to2"]:
+names = [f"q{g}_s{seed}" for g in (1, 2) for seed in seeds] + ["resume_2to1", "resume_1to2"]
+for name in names:
     train, ev = load(name + ".train.json"), load(name + ".eval.json")
     row = {}
     try:
@@ -57,15 +62,15 @@ def psnr(name):
     return runs.get(name, {}).get("test_psnr")
 
 
-one = [p for p in (psnr("q1_s6666"), psnr("q1_s1")) if p is not None]
-two = [p for p in (psnr("q2_s6666"), psnr("q2_s1")) if p is not None]
-quality = {"psnr_1gpu": one, "psnr_2gpu": two}
-if len(one) == 2:
+one = [p for p in (psnr(f"q1_s{seed}") for seed in seeds) if p is not None]
+two = [p for p in (psnr(f"q2_s{seed}") for seed in seeds) if p is not None]
+quality = {"seeds": seeds, "psnr_1gpu": one, "psnr_2gpu": two}
+if len(one) >= 2:
     quality["seed_spread_1gpu"] = [min(one), max(one)]
 if one and two:
     quality["mean_2gpu_minus_mean_1gpu"] = statistics.mean(two) - statistics.mean(one)
 walls = {}
-for seed in ("s6666", "s1"):
+for seed in ("s" + seed for seed in seeds):
     a, b = runs.get("q1_" + seed, {}), runs.get("q2_" + seed, {})
     if a.get("wall_s") and b.get("wall_s"):
         walls[seed] = {"wall_ratio": b["wall_s"] / a["wall_s"]}
@@ -76,9 +81,9 @@ quality["two_over_one"] = walls
 summary["quality"] = quality
 
 resume = {}
-if psnr("resume_2to1") is not None and psnr("q2_s6666") is not None:
-    resume["2gpu_ckpt_on_1gpu_minus_uninterrupted_2gpu"] = psnr("resume_2to1") - psnr("q2_s6666")
-if psnr("resume_1to2") is not None and psnr("q1_s6666") is not None:
-    resume["1gpu_ckpt_on_2gpu_minus_uninterrupted_1gpu"] = psnr("resume_1to2") - psnr("q1_s6666")
+if psnr("resume_2to1") is not None and psnr("q2_" + first) is not None:
+    resume["2gpu_ckpt_on_1gpu_minus_uninterrupted_2gpu"] = psnr("resume_2to1") - psnr("q2_" + first)
+if psnr("resume_1to2") is not None and psnr("q1_" + first) is not None:
+    resume["1gpu_ckpt_on_2gpu_minus_uninterrupted_1gpu"] = psnr("resume_1to2") - psnr("q1_" + first)
 summary["resume"] = resume
 print(json.dumps(summary, indent=1))

@@ -37,6 +37,11 @@ std::string DeviceDescription() {
 namespace internal {
 
 CudaBackend::~CudaBackend() {
+  if (stream_) cudaStreamSynchronize(stream_);  // no upload from a pinned copy in flight
+  for (TransientTarget& slot : transient_) {
+    if (slot.pinned) cudaFreeHost(slot.pinned);
+    if (slot.uploaded) cudaEventDestroy(slot.uploaded);
+  }
   if (mark_event_) cudaEventDestroy(mark_event_);
   if (next_event_) cudaEventDestroy(next_event_);
   deform_.reset();

@@ -206,6 +206,19 @@ class CudaBackend final : public Backend {
   std::unordered_map<uint64_t, std::pair<DeviceBuffer<float>, std::list<uint64_t>::iterator>> targets_;
   std::list<uint64_t> lru_;
   size_t target_bytes_ = 0;
+  // A view's image kept on another device (Target): two slots used in turn, each a pinned host
+  // copy, a device copy [H][W][3] and an event at the end of its upload. The pinned copy makes the
+  // upload asynchronous (a pageable one waits for the stream's queued work), and with two slots
+  // staging an image waits only for the upload before last.
+  struct TransientTarget {
+    float* pinned = nullptr;  // cudaMallocHost, `capacity` floats
+    size_t capacity = 0;
+    DeviceBuffer<float> device;
+    cudaEvent_t uploaded = nullptr;
+  };
+  std::array<TransientTarget, 2> transient_;
+  size_t next_transient_ = 0;
+  StatusOr<const float*> TransientTargetOf(const Image& image);
   uint64_t peak_memory_ = 0;
   // Profiling (options_.profile).
   cudaEvent_t mark_event_ = nullptr, next_event_ = nullptr;

@@ -1,6 +1,7 @@
 // The CUDA backend's parameter store: loading and saving the model state, downloads,
 // training statistics, the device cache of target images and the memory high-water mark.
 #include <algorithm>
+#include <cstring>
 
 #include "cuda_backend_impl.h"
 #include "optim/gather_cuda.h"
@@ -178,7 +179,8 @@ Status CudaBackend::UploadLayout() {
   return offsets_.Upload(offsets, stream_);
 }
 
-// Target images stay on the device (LRU, bounded), keyed by the view's image key.
+// Target images stay on the device (LRU, bounded), keyed by the view's image key, unless the view
+// says another device keeps them.
 StatusOr<const float*> CudaBackend::Target(const train::TrainView& view) {
   auto it = targets_.find(view.image_key);
   if (it != targets_.end()) {
@@ -194,6 +196,7 @@ StatusOr<const float*> CudaBackend::Target(const train::TrainView& view) {
     return MakeError(StatusCode::kInvalidArgument, "target image ", image.width, "x", image.height, "x",
                      image.channels, " does not match camera ", view.camera->width, "x", view.camera->height);
   }
+  if (!view.keep_on_device) return TransientTargetOf(image);
   while (target_bytes_ + image.pixels.size() * sizeof(float) > kTargetCacheBytes && !lru_.empty()) {
     auto victim = targets_.find(lru_.back());
     target_bytes_ -= victim->second.first.bytes();
@@ -206,6 +209,30 @@ StatusOr<const float*> CudaBackend::Target(const train::TrainView& view) {
   ATEX_RETURN_IF_ERROR(entry.first.Upload(image.pixels, stream_));
   target_bytes_ += entry.first.bytes();
   return static_cast<const float*>(entry.first.data());
+}
+
+// Another device keeps this image: a copy for this use only, in the next transient slot. The
+// slot's device copy is overwritten two such views later, after the kernels that read it (both
+// are ordered on stream_); its pinned copy once the slot's last upload has completed.
+StatusOr<const float*> CudaBackend::TransientTargetOf(const Image& image) {
+  TransientTarget& slot = transient_[next_transient_];
+  next_transient_ = (next_transient_ + 1) % transient_.size();
+  const size_t n = image.pixels.size();
+  if (slot.uploaded == nullptr) {
+    ATEX_CUDA_RETURN_IF_ERROR(cudaEventCreateWithFlags(&slot.uploaded, cudaEventDisableTiming));
+  } else {
+    ATEX_CUDA_RETURN_IF_ERROR(cudaEventSynchronize(slot.uploaded));
+  }
+  if (slot.capacity < n) {
+    if (slot.pinned) ATEX_CUDA_RETURN_IF_ERROR(cudaFreeHost(slot.pinned));
+    slot.pinned = nullptr, slot.capacity = 0;
+    ATEX_CUDA_RETURN_IF_ERROR(cudaMallocHost(&slot.pinned, n * sizeof(float)));
+    slot.capacity = n;
+  }
+  std::memcpy(slot.pinned, image.pixels.data(), n * sizeof(float));
+  ATEX_RETURN_IF_ERROR(slot.device.Upload(slot.pinned, n, stream_));
+  ATEX_CUDA_RETURN_IF_ERROR(cudaEventRecord(slot.uploaded, stream_));
+  return static_cast<const float*>(slot.device.data());
 }
 
 Status CudaBackend::TrackMemory() {

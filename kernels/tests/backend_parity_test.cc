@@ -416,5 +416,29 @@ TEST(BackendParity, ALoadWithoutMomentsStartsThemAtZero) {
   EXPECT_LE(RelativeError(sb.v_texels, sa.v_texels), 1e-3);
 }
 
+// Views whose images another rank's device keeps (TrainView::keep_on_device false, data parallel
+// training): the step is the CPU backend's, and the device keeps none of those images, while the
+// views it keeps stay cached for the next step.
+TEST(BackendParity, ViewsKeptOnAnotherDeviceAreUsedOnceAndNotCached) {
+  ATEX_REQUIRE_CUDA_DEVICE();
+  Scene scene = MakeScene(31);
+  std::unique_ptr<train::Backend> cpu, gpu;
+  ASSERT_NO_FATAL_FAILURE(LoadBoth(scene.state, /*profile=*/false, &cpu, &gpu));
+  std::vector<train::TrainView> batch;
+  for (size_t k = 0; k < 3; ++k) {
+    train::TrainView view{&scene.cameras[k], &scene.targets[k], k + 1};
+    view.keep_on_device = k == 1;  // two transient images around one that stays
+    batch.push_back(view);
+  }
+  train::StepResult a, b;
+  ASSERT_NO_FATAL_FAILURE(StepBoth(*cpu, *gpu, batch, &a, &b));
+  EXPECT_LE(std::abs(a.loss - b.loss), 1e-5 * std::abs(a.loss));
+  for (size_t k = 0; k < batch.size(); ++k) EXPECT_NEAR(a.view_psnr[k], b.view_psnr[k], 1e-3) << "view " << k;
+  ExpectSameGradients(*cpu, *gpu);
+  EXPECT_FALSE(gpu->HasTarget(1));
+  EXPECT_TRUE(gpu->HasTarget(2));
+  EXPECT_FALSE(gpu->HasTarget(3));
+}
+
 }  // namespace
 }  // namespace atex::cuda

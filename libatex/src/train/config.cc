@@ -102,7 +102,8 @@ static void from_json(const nlohmann::json& j, Stage2Config& c) {
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(CameraColourConfig, enabled, first_step, interval, views_per_camera,
                                                 keep)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE_WITH_DEFAULT(TrainConfig, seed, stage1, stage2, camera_colour, background,
-                                                near_plane, eval_every, eval_views, checkpoint_every)
+                                                near_plane, eval_every, eval_views, checkpoint_every,
+                                                images_on_every_gpu)
 
 double ExpDecay::At(int step) const {
   if (step < 0 || (initial == 0.0 && final == 0.0)) return 0.0;

@@ -13,6 +13,7 @@
 #include "atex/train/backend.h"
 #include "atex/train/checkpoint.h"
 #include "atex/train/communicator.h"
+#include "atex/train/schedule.h"
 #include "atex/train/trainer.h"
 #include "core/test_support.h"
 #include "train/data_parallel.h"
@@ -376,6 +377,49 @@ TEST(DataParallel, ChecksumSeesEveryParameterGroup) {
   b.gaussians.rotations[7] = -0.0f;  // a different bit pattern of an equal value
   EXPECT_NE(ParameterChecksum(b), base);
   EXPECT_EQ(ParameterChecksum(a), base);
+}
+
+// Records, for every view of every step, whether the trainer let the device keep its image.
+class KeepRecordingBackend : public ForwardingBackend {
+ public:
+  explicit KeepRecordingBackend(std::vector<std::pair<size_t, bool>>* seen) : seen_(seen) {}
+  StatusOr<StepResult> Step(const StepRequest& r, std::span<const TrainView> views) override {
+    for (const TrainView& v : views) seen_->emplace_back(v.image_key - 1, v.keep_on_device);
+    return ForwardingBackend::Step(r, views);
+  }
+
+ private:
+  std::vector<std::pair<size_t, bool>>* seen_;  // (training view index, keep_on_device)
+};
+
+// Each rank keeps the images of its home views only (schedule.h, HomeRank), and renders mostly
+// those (at least 60 %); with images_on_every_gpu every rank keeps every image it draws.
+TEST(DataParallel, EachRankKeepsTheImagesOfItsHomeViewsUnlessToldToKeepAll) {
+  auto data = MovingBall();
+  ASSERT_NE(data, nullptr);
+  for (bool every : {false, true}) {
+    TrainerOptions options;
+    options.config = SmallConfig();
+    options.config.images_on_every_gpu = every;
+    options.stages = kStage1;
+    std::vector<std::vector<std::pair<size_t, bool>>> seen(2);  // per rank; outlives the backends
+    auto results = TrainRanks(*data, options, 2, [&](int rank) {
+      return std::unique_ptr<Backend>(std::make_unique<KeepRecordingBackend>(&seen[rank]));
+    });
+    for (const auto& r : results) ASSERT_TRUE(r.ok()) << r.status().ToString();
+    for (int rank = 0; rank < 2; ++rank) {
+      size_t home = 0;
+      ASSERT_GT(seen[rank].size(), 0u);
+      for (const auto& [view, keep] : seen[rank]) {
+        const bool at_home = HomeRank(view, 2) == rank;
+        home += at_home;
+        EXPECT_EQ(keep, every || at_home) << "rank " << rank << " view " << view;
+      }
+      // A split that ignored homes would render half the views at home (the tiny scene's few views
+      // are not evenly split between the homes, so no more is certain here).
+      EXPECT_GT(home * 10, seen[rank].size() * 6) << "rank " << rank << ": most views at home";
+    }
+  }
 }
 
 }  // namespace

@@ -37,13 +37,38 @@ size_t CameraSchedule::ViewAt(uint64_t position) const {
   return cached_[position % view_count_];
 }
 
-std::vector<size_t> CameraSchedule::Views(int64_t step, int batch, int rank, int world_size) const {
-  const int local = batch / world_size;
+std::vector<size_t> CameraSchedule::Views(int64_t step, int batch) const {
   std::vector<size_t> views;
-  views.reserve(local);
-  const uint64_t start = static_cast<uint64_t>(step) * batch + static_cast<uint64_t>(rank) * local;
-  for (int i = 0; i < local; ++i) views.push_back(ViewAt(start + i));
+  if (batch <= 0) return views;
+  views.reserve(static_cast<size_t>(batch));
+  const uint64_t start = static_cast<uint64_t>(step) * static_cast<uint64_t>(batch);
+  for (int i = 0; i < batch; ++i) views.push_back(ViewAt(start + static_cast<uint64_t>(i)));
   return views;
+}
+
+std::vector<size_t> ShareOfBatch(std::span<const size_t> batch, int rank, int world_size) {
+  if (world_size <= 1) return std::vector<size_t>(batch.begin(), batch.end());
+  const size_t share = batch.size() / static_cast<size_t>(world_size);
+  // owner[i]: the rank that renders batch[i]; every rank computes the whole assignment.
+  std::vector<int> owner(batch.size(), -1);
+  std::vector<size_t> taken(static_cast<size_t>(world_size), 0);
+  for (size_t i = 0; i < batch.size(); ++i) {
+    const int home = HomeRank(batch[i], world_size);
+    if (taken[static_cast<size_t>(home)] < share) owner[i] = home, ++taken[static_cast<size_t>(home)];
+  }
+  int next = 0;
+  for (size_t i = 0; i < batch.size(); ++i) {
+    if (owner[i] >= 0) continue;
+    while (next < world_size && taken[static_cast<size_t>(next)] >= share) ++next;
+    if (next == world_size) break;  // batch.size() not a multiple of world_size: the rest is nobody's
+    owner[i] = next, ++taken[static_cast<size_t>(next)];
+  }
+  std::vector<size_t> mine;
+  mine.reserve(share);
+  for (size_t i = 0; i < batch.size(); ++i) {
+    if (owner[i] == rank) mine.push_back(batch[i]);
+  }
+  return mine;
 }
 
 namespace {
@@ -76,7 +101,7 @@ const std::vector<size_t>& TimeBatchSchedule::TimeOrder(uint64_t epoch) const {
   return cached_;
 }
 
-std::vector<size_t> TimeBatchSchedule::Views(int64_t step, int batch, int rank, int world_size) const {
+std::vector<size_t> TimeBatchSchedule::Views(int64_t step, int batch) const {
   std::vector<size_t> picks;
   if (groups_.empty() || batch <= 0) return picks;
   const uint64_t times = groups_.size();
@@ -95,9 +120,7 @@ std::vector<size_t> TimeBatchSchedule::Views(int64_t step, int batch, int rank, 
     const size_t repeat = picks[i];  // a copy: push_back may reallocate
     picks.push_back(repeat);
   }
-  const int local = batch / world_size;
-  return std::vector<size_t>(picks.begin() + static_cast<std::ptrdiff_t>(rank) * local,
-                             picks.begin() + static_cast<std::ptrdiff_t>(rank + 1) * local);
+  return picks;
 }
 
 }  // namespace atex::train

@@ -10,16 +10,12 @@
 namespace atex::train {
 namespace {
 
-TEST(CameraSchedule, EpochsArePermutationsAndRanksPartitionTheBatch) {
+TEST(CameraSchedule, EpochsArePermutationsAndTheSeedDecides) {
   CameraSchedule schedule(6666, 27);
   std::vector<int> seen(27, 0);
   for (int i = 0; i < 27; ++i) seen[schedule.ViewAt(27 + i)]++;
   for (int c : seen) EXPECT_EQ(c, 1);
-  // Two ranks of batch 8 see exactly the single-rank batch.
-  auto all = schedule.Views(5, 8);
-  auto r0 = schedule.Views(5, 8, 0, 2), r1 = schedule.Views(5, 8, 1, 2);
-  r0.insert(r0.end(), r1.begin(), r1.end());
-  EXPECT_EQ(all, r0);
+  EXPECT_EQ(schedule.Views(5, 8).size(), 8u);
   // Same seed, same stream; another seed differs.
   CameraSchedule same(6666, 27), other(1, 27);
   EXPECT_EQ(same.Views(3, 4), schedule.Views(3, 4));
@@ -58,16 +54,10 @@ TEST(TimeBatchSchedule, EachBatchIsOneTimeAndEveryTimeComesOncePerRound) {
   EXPECT_GT(first_views.size(), 200u);
 }
 
-TEST(TimeBatchSchedule, RanksPartitionTheBatchAndTheSeedDecides) {
+TEST(TimeBatchSchedule, TheSeedDecides) {
   const std::vector<double> times = PanopticTimes();
   TimeBatchSchedule schedule(6666, times), same(6666, times), other(1, times);
-  for (int s : {0, 17, 31, 1000}) {
-    auto all = schedule.Views(s, 8);
-    auto r0 = schedule.Views(s, 8, 0, 2), r1 = schedule.Views(s, 8, 1, 2);
-    r0.insert(r0.end(), r1.begin(), r1.end());
-    EXPECT_EQ(all, r0) << "step " << s;
-    EXPECT_EQ(same.Views(s, 8), all);
-  }
+  for (int s : {0, 17, 31, 1000}) EXPECT_EQ(same.Views(s, 8), schedule.Views(s, 8)) << "step " << s;
   bool differs = false;
   for (int s = 0; s < 5; ++s) differs |= other.Views(s, 4) != schedule.Views(s, 4);
   EXPECT_TRUE(differs);
@@ -88,6 +78,51 @@ TEST(TimeBatchSchedule, SmallTimeGroupsContinueWithTheNextTimes) {
   const std::vector<size_t> views = tiny.Views(0, 4);
   ASSERT_EQ(views.size(), 4u);
   EXPECT_EQ(std::set<size_t>(views.begin(), views.end()).size(), 2u);
+}
+
+TEST(ShareOfBatch, SharesPartitionTheBatchAndPreferHomeViews) {
+  const std::vector<double> times = PanopticTimes();
+  TimeBatchSchedule schedule(6666, times);
+  for (int world : {1, 2, 4}) {
+    size_t home_views = 0, views_total = 0;
+    for (int s = 0; s < 200; ++s) {
+      const std::vector<size_t> batch = schedule.Views(s, 8);
+      std::multiset<size_t> joined;
+      for (int r = 0; r < world; ++r) {
+        const std::vector<size_t> mine = ShareOfBatch(batch, r, world);
+        ASSERT_EQ(mine.size(), 8u / world) << "step " << s << " rank " << r;
+        for (size_t v : mine) {
+          joined.insert(v);
+          home_views += HomeRank(v, world) == r;
+          ++views_total;
+        }
+        // A view away from its home rank only where its home rank's share is full of home views.
+        for (size_t v : mine) {
+          if (HomeRank(v, world) == r) continue;
+          const std::vector<size_t> home_share = ShareOfBatch(batch, HomeRank(v, world), world);
+          for (size_t w : home_share) EXPECT_EQ(HomeRank(w, world), HomeRank(v, world)) << "step " << s;
+        }
+      }
+      EXPECT_EQ(joined, std::multiset<size_t>(batch.begin(), batch.end())) << "step " << s << " world " << world;
+    }
+    if (world == 1) {
+      EXPECT_EQ(home_views, views_total);
+    }
+    // Most views are rendered where their image is kept (a batch of 8 views of 2 or 4 homes).
+    EXPECT_GT(static_cast<double>(home_views), 0.7 * static_cast<double>(views_total)) << "world " << world;
+  }
+  // Views by home rank, whatever the hash makes of the first indices.
+  std::vector<size_t> home0, home1;
+  for (size_t v = 0; home0.size() < 4 || home1.size() < 2; ++v) (HomeRank(v, 2) == 0 ? home0 : home1).push_back(v);
+  // Every view of one home: its rank keeps the first two, the other rank takes the rest in order.
+  EXPECT_EQ(ShareOfBatch(std::vector<size_t>(home0.begin(), home0.begin() + 4), 0, 2),
+            (std::vector<size_t>{home0[0], home0[1]}));
+  EXPECT_EQ(ShareOfBatch(std::vector<size_t>(home0.begin(), home0.begin() + 4), 1, 2),
+            (std::vector<size_t>{home0[2], home0[3]}));
+  // Two of each home, interleaved: every view is rendered at home.
+  const std::vector<size_t> mixed = {home1[0], home0[0], home1[1], home0[1]};
+  EXPECT_EQ(ShareOfBatch(mixed, 0, 2), (std::vector<size_t>{home0[0], home0[1]}));
+  EXPECT_EQ(ShareOfBatch(mixed, 1, 2), (std::vector<size_t>{home1[0], home1[1]}));
 }
 
 }  // namespace

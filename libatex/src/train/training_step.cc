@@ -102,8 +102,8 @@ Status TrainingLoop::RunPhase(Phase phase, int first_step) {
     StepRequest request = MakeRequest(phase, step);
     request.accumulate_importance = step >= importance_from;
     const std::vector<size_t> picks =
-        same_time ? time_schedule_.Views(total_steps_, batch, dp_.rank(), dp_.world_size())
-                  : schedule_.Views(total_steps_, batch, dp_.rank(), dp_.world_size());
+        ShareOfBatch(same_time ? time_schedule_.Views(total_steps_, batch) : schedule_.Views(total_steps_, batch),
+                     dp_.rank(), dp_.world_size());
     std::vector<std::shared_ptr<const Image>> images;
     std::vector<TrainView> views;
     ATEX_RETURN_IF_ERROR(BatchViews(picks, &images, &views));
@@ -178,13 +178,17 @@ Status TrainingLoop::BatchViews(const std::vector<size_t>& picks, std::vector<st
     const View& v = train[index];
     const uint64_t key = static_cast<uint64_t>(index) + 1;
     const ColourAffine& colour = colours_.For(v.camera_id);
+    // A view away from its home rank (ShareOfBatch) is rendered here this once: unless the
+    // configuration keeps every image everywhere, its image is not kept on this device, so that
+    // each device holds only its rank's share of the images.
+    const bool keep = config_.images_on_every_gpu || HomeRank(index, dp_.world_size()) == dp_.rank();
     if (backend_.HasTarget(key)) {  // on the device already: no host decode
-      views->push_back({&v.camera, nullptr, key, colour});
+      views->push_back({&v.camera, nullptr, key, colour, keep});
       continue;
     }
     ATEX_ASSIGN_OR_RETURN(auto image, data_.LoadImage(v));
     images->push_back(image);
-    views->push_back({&v.camera, images->back().get(), key, colour});
+    views->push_back({&v.camera, images->back().get(), key, colour, keep});
   }
   return Status::Ok();
 }

@@ -78,6 +78,9 @@ struct TrainView {
   // The view's camera colour correction (colour_correction.h): the loss compares the target
   // with gain · rendered + offset. Identity: the render itself.
   ColourAffine colour;
+  // False: the backend uses the image for this step only and does not keep a copy (in data
+  // parallel training another rank's device keeps it; schedule.h, HomeRank).
+  bool keep_on_device = true;
 };
 
 struct StepRequest {

@@ -193,6 +193,13 @@ struct TrainConfig {
   int eval_every = 1000;        // test-view evaluation during training (0 = only at the end)
   int eval_views = 16;          // test views (evenly spaced) of those evaluations; 0 = all. The final one uses all.
   int checkpoint_every = 2000;  // 0 = never
+  // Data-parallel training (several ranks): false keeps each training image on its home rank's
+  // device only (schedule.h, HomeRank), so a device holds about 1/R of the images and the GPUs
+  // together cache R times as many; a view rendered away from home has its image copied in for
+  // that step. true keeps every image a device draws, as one GPU does: more memory per GPU, no
+  // such copies (basketball on 2 and 4 H100s: +8 % and +12 % views/s; BENCHMARKS.md, issue 25).
+  // One rank: no effect.
+  bool images_on_every_gpu = false;
 };
 
 // Defaults for a dataset kind ("panoptic", "dnerf", "n3dv"); unknown kinds get the generic defaults.
