@@ -274,7 +274,8 @@ atex::cli::Runner SetupTrain(CLI::App& app) {
   app.add_option("--backend", a->backend, "auto, cuda or cpu")->capture_default_str();
   app.add_option("--gpus", a->gpus,
                  "GPU indices, e.g. 0,1: one rank per GPU (data parallel, NCCL; docs/multi_gpu.md); the batch "
-                 "sizes are the global ones (multiples of the GPU count)");
+                 "sizes are the global ones (multiples of the GPU count); each GPU keeps its share of the "
+                 "training images (--set images_on_every_gpu=true: every image, faster, more memory)");
   atex::cli::AddInt(app, "--ranks", &a->ranks, 1, 64,
                     "With --backend cpu: this many data-parallel ranks as threads (checks multi-GPU semantics)");
   app.add_option("--init", a->init, "Stage-1 asset to start stage 2 from");
