@@ -4,10 +4,12 @@
 # (batch 4 per GPU, MULTI_GPU_FINE fine steps, hull + volume init, 1, 2 and 4 GPUs, peak memory
 # per GPU) of the new tree, then of .oldsrc (`git archive OLD | tar -x -C .oldsrc`), after the
 # CUDA parity test and the schedule tests of the new tree.
-#   bench/device/home_views_ab.sh OUT      (rows: OUT/new/multi_gpu.json, OUT/old/multi_gpu.json)
+#   bench/device/home_views_ab.sh OUT      (OUT/ab.tgz: each side's multi_gpu.json, peaks and logs;
+#                                           a device call returns only a few dozen files)
 source "$(dirname "$0")/common.sh"
-out=$1
-mkdir -p "$out"
+dest=$1
+out=out/home_views_ab
+mkdir -p "$dest" "$out"
 export NCCL_NVLS_ENABLE=0 MULTI_GPU_FINE=${MULTI_GPU_FINE:-1000}
 jobs=$(( $(nproc) / 2 ))
 BUILD_TREE_OPTIONS="-DATEX_NCCL=ON -DATEX_TESTS=ON -DATEX_BENCHMARKS=OFF" \
@@ -33,3 +35,4 @@ for side in new old; do
   rm -f "$out/$side"/*.atex
   grep -E '"(views_per_s|peak_per_gpu|step_rate)' "$out/$side/multi_gpu.json" || true
 done
+tar czf "$dest/ab.tgz" -C "$out" .

@@ -47,7 +47,8 @@ common=(--data "$bb" --stage 1 --force --json --set stage1.coarse_iterations=200
         --set checkpoint_every=0 "${extra[@]}")
 
 # Runs `atex train` with ARGS... as run NAME while sampling the GPUs' memory every 200 ms;
-# writes NAME.train.json, NAME.log, NAME.memory.csv and NAME.wall (seconds).
+# writes NAME.train.json, NAME.log, NAME.memory.csv, NAME.peak.json (the largest sample of each
+# GPU, MiB) and NAME.wall (seconds).
 run() {  # NAME ARGS...
   local name=$1
   shift
@@ -64,6 +65,15 @@ run() {  # NAME ARGS...
   end=$(date +%s.%N)
   kill "$sampler"
   python3 -c "print($end - $start)" > "$out/$name.wall"
+  python3 - "$out/$name.memory.csv" > "$out/$name.peak.json" <<'PY'
+import json, sys
+peak = {}
+for line in open(sys.argv[1]):
+    parts = [p.strip() for p in line.split(",")]
+    if len(parts) == 2 and parts[1].isdigit():
+        peak[int(parts[0])] = max(peak.get(int(parts[0]), 0), int(parts[1]))
+print(json.dumps(peak))
+PY
 }
 
 if [ "$phase" = memory ]; then
@@ -93,16 +103,12 @@ if [ "$phase" = memory ]; then
     names="$names $name"
   done
   python3 - "$out" $names <<'PY' | tee "$out/memory.json"
-import collections, json, os, sys
+import json, os, sys
 out, rows = sys.argv[1], {}
 for name in sys.argv[2:]:
-    peak = collections.defaultdict(int)
-    for line in open(os.path.join(out, name + ".memory.csv")):
-        parts = [p.strip() for p in line.split(",")]
-        if len(parts) == 2 and parts[1].isdigit():
-            peak[int(parts[0])] = max(peak[int(parts[0])], int(parts[1]))
+    peak = {int(k): v for k, v in json.load(open(os.path.join(out, name + ".peak.json"))).items()}
     train = json.load(open(os.path.join(out, name + ".train.json")))
-    rows[name] = {"peak_mib_per_gpu": dict(peak),
+    rows[name] = {"peak_mib_per_gpu": peak,
                   "fine_steps_per_s": train["steps"]["fine"] / train["seconds"]["fine"]}
 one = rows["mem_1gpu"]
 for name, row in rows.items():
@@ -137,14 +143,11 @@ for name in sys.argv[2:]:
     rows[name] = {"wall_s": float(open(os.path.join(out, name + ".wall")).read()),
                   "fine_seconds": seconds.get("fine"), "fine_steps": steps.get("fine")}
     rows[name]["fine_steps_per_s"] = rows[name]["fine_steps"] / rows[name]["fine_seconds"]
-    # Peak memory per GPU (nvidia-smi, every 200 ms), the GPUs the run used only.
-    peak = {}
-    for line in open(os.path.join(out, name + ".memory.csv")):
-        parts = [p.strip() for p in line.split(",")]
-        if len(parts) == 2 and parts[1].isdigit() and int(parts[1]) > 0:
-            peak[int(parts[0])] = max(peak.get(int(parts[0]), 0), int(parts[1]))
+    # Peak memory per GPU (run's NAME.peak.json), the GPUs the run used only.
+    peak = json.load(open(os.path.join(out, name + ".peak.json")))
     gpus = int(name.split("_")[1].rstrip("gpu"))
-    rows[name]["peak_mib_per_gpu"] = {k: v for k, v in sorted(peak.items()) if k < gpus}
+    rows[name]["peak_mib_per_gpu"] = {int(k): v for k, v in sorted(peak.items(), key=lambda kv: int(kv[0]))
+                                      if int(k) < gpus}
 # Step rate against one GPU; with the batch grown with the GPU count, views/s is that times the count.
 one = rows["scale_1gpu"]["fine_steps_per_s"]
 summary = {"runs": rows}

@@ -24,8 +24,9 @@
 # With .fuzzkit/kit.tar.xz (bench/device/fuzz_kit.sh pack build-fuzz fuzz_gltf,fuzz_pth) and
 # .fuzzcorpus (their corpora), issue 24's fuzz campaign of those two targets runs niced on half
 # the cores during step 2 (it ends before step 4); OUT/corpus.tgz holds the corpus's new inputs.
-# MGS_TESTS: more test executables (CMake targets) to build and run first, e.g. the CUDA parity test
-# of a change the steps measure. MGS_SEEDS: the two seeds of step 2 (default "6666 1"; the first is checkpointed and resumed);
+# MGS_TESTS: more test executables (CMake targets) to build and run first, e.g. the CUDA parity
+# test of a change the steps measure. MGS_SEEDS: the two seeds of step 2 (default "6666 1"; the
+# first is checkpointed and resumed);
 # MGS_STEPS: which of the steps 1 to 4 run (default "1 2 3 4"); MGS_PROFILE=0 leaves out step 1's
 # profiled runs. Step 1's scaling rows carry each run's peak memory per GPU (scale/multi_gpu.json).
 # The steps run the scripts of the source tree: leave bench/device unchanged between the calls.
@@ -109,7 +110,7 @@ steps() {
     "$(find "$BUILD" -name "$t" -type f -perm -u+x | head -1)" > "$s/test_$t.log" 2>&1
     note "$t rc=$?"
   done
-  note "step 1: gradient test, scaling, profile"
+  [[ $wanted == *" 1 "* ]] && note "step 1: gradient test, scaling, profile"
   if [[ $wanted == *" 1 "* ]] && ! grep -q '"scale_4gpu"' "$s/scale/multi_gpu.json" 2>/dev/null; then
     "$(find "$BUILD" -name nccl_data_parallel_test -type f -perm -u+x | head -1)" > "$s/nccl_test.log" 2>&1
     note "nccl_data_parallel_test rc=$?"
@@ -154,10 +155,13 @@ steps() {
     ) & pids+=($!)
     wait "${pids[@]}"
   fi
-  [[ $wanted == *" 3 "* ]] && note "step 3: memory" && MULTI_GPU_MEMORY_VARIANTS=default,ctas_4_simple_1mib \
-    MULTI_GPU_PHASE=memory MULTI_GPU_ARGS="--set stage1.init_method=auto" bench/device/multi_gpu.sh "$s/memory" \
-    > "$s/memory.log" 2>&1
-  note "memory rc=$?"
+  if [[ $wanted == *" 3 "* ]]; then
+    note "step 3: memory"
+    MULTI_GPU_MEMORY_VARIANTS=default,ctas_4_simple_1mib \
+      MULTI_GPU_PHASE=memory MULTI_GPU_ARGS="--set stage1.init_method=auto" bench/device/multi_gpu.sh "$s/memory" \
+      > "$s/memory.log" 2>&1
+    note "memory rc=$?"
+  fi
   # Issue 23's timed fits: fit_panoptic.sh trains its own short models (without fast-object
   # Gaussians, which the old CLI cannot read; the 1-GPU runs above have them), then fits them
   # with the old and the new CLI, alone on the machine once the fuzzing is over.

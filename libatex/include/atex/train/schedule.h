@@ -52,27 +52,6 @@ class TimeBatchSchedule {
   mutable std::vector<size_t> cached_;
 };
 
-// The home rank of training view `view` in a group of `world_size` ranks: the rank whose device
-// keeps that view's target image. A hash of the index, not the index modulo R, so that however a
-// dataset orders its views (camera-major or time-major), each device holds about 1/R of the images
-// and the views of one time spread over the ranks.
-inline int HomeRank(size_t view, int world_size) {
-  if (world_size <= 1) return 0;
-  uint64_t z = static_cast<uint64_t>(view) * 0x9E3779B97F4A7C15ull + 0x632BE59BD9B4E019ull;
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return static_cast<int>((z ^ (z >> 31)) % static_cast<uint64_t>(world_size));
-}
-
-// The views that `rank` of `world_size` renders out of a step's whole batch `batch`
-// (batch.size() a multiple of world_size; each rank gets batch.size() / world_size views).
-// Each rank first takes its home views (HomeRank) in batch order, up to its share; the views
-// left over, whose home rank is full, go in batch order to the ranks that still have room,
-// lowest rank first. Every rank computes the same split from the same batch, and the shares
-// partition the batch, so the ranks' summed gradients are those of one rank with all of it;
-// only which device renders a view changes, and with it where its image must be.
-std::vector<size_t> ShareOfBatch(std::span<const size_t> batch, int rank, int world_size);
-
 // SplitMix64: the project's small deterministic generator (no std:: distribution,
 // whose results differ between standard libraries).
 struct SplitMix64 {
@@ -87,5 +66,26 @@ struct SplitMix64 {
   double Uniform() { return (Next() >> 11) * (1.0 / 9007199254740992.0); }  // [0, 1)
   double Normal();  // Box-Muller
 };
+
+// The home rank of training view `view` in a group of `world_size` ranks: the rank whose device
+// keeps that view's target image. A hash of the index (SplitMix64), not the index modulo R, so that
+// however a dataset orders its views (camera-major or time-major), each device holds about 1/R of
+// the images and the views of one time spread over the ranks. (The generator's state starts one
+// increment below view · 0x9E3779B97F4A7C15 + 0x632BE59BD9B4E019: the salt of the measured runs.)
+inline int HomeRank(size_t view, int world_size) {
+  if (world_size <= 1) return 0;
+  SplitMix64 hash(static_cast<uint64_t>(view) * 0x9E3779B97F4A7C15ull + 0x632BE59BD9B4E019ull -
+                  0x9E3779B97F4A7C15ull);
+  return static_cast<int>(hash.Next() % static_cast<uint64_t>(world_size));
+}
+
+// The views that `rank` of `world_size` renders out of a step's whole batch `batch`
+// (batch.size() a multiple of world_size; each rank gets batch.size() / world_size views).
+// Each rank first takes its home views (HomeRank) in batch order, up to its share; the views
+// left over, whose home rank is full, go in batch order to the ranks that still have room,
+// lowest rank first. Every rank computes the same split from the same batch, and the shares
+// partition the batch, so the ranks' summed gradients are those of one rank with all of it;
+// only which device renders a view changes, and with it where its image must be.
+std::vector<size_t> ShareOfBatch(std::span<const size_t> batch, int rank, int world_size);
 
 }  // namespace atex::train
