@@ -6,9 +6,12 @@
 // 16 texels each, a realistic deformation field, f32 streams as training writes).
 //
 //   bench_fit [--benchmark_filter=...]
+//   bench_fit --write-model PATH   (writes the synthetic model, to time `atex fit` on it)
 #include <benchmark/benchmark.h>
 
+#include <cstdio>
 #include <numeric>
+#include <string>
 
 #include "atex/container.h"
 #include "atex/fit.h"
@@ -187,4 +190,18 @@ BENCHMARK(BM_FitRenderStateFromAsset)->Unit(benchmark::kMillisecond)->UseRealTim
 
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  if (argc == 3 && std::string(argv[1]) == "--write-model") {
+    const atex::Status written = atex::WriteAssetFile(argv[2], UniformModel(), {});
+    if (!written.ok()) {
+      std::fprintf(stderr, "%s\n", written.ToString().c_str());
+      return 1;
+    }
+    return 0;
+  }
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

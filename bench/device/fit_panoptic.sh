@@ -9,19 +9,27 @@
 #
 # Without models it trains short ones into out/fitp (--train-only: only that, and no old build)
 # with the current tree (shortened stage 1 of common.sh without fast-object Gaussians, which the
-# old CLI cannot read, then 1,200 stage-2 steps uniform and adaptive, growth at 120 and 240). Results:
-# OUT_DIR/fit_panoptic.jsonl (one row per fit) and a table on stdout.
+# old CLI cannot read, then FITP_STAGE2_STEPS (default 1,200) stage-2 steps uniform and adaptive
+# at the same time on the GPU, growth at 10 % and 20 % of them), while .oldsrc builds on the CPU.
+# FITP_CONFIGS picks the fitters (default "old new-fixed-steps new"), FITP_MODELS the models and
+# their order (default "uniform adaptive"). Results:
+# OUT_DIR/fit_panoptic.jsonl (one row per fit), a table on stdout, and OUT_DIR/fitp.tgz (rows,
+# reports, logs: one file, as a device call returns only a few).
 source "$(dirname "$0")/common.sh"
 out=$1
 OLD=build-old
 models=out/fitp
 mkdir -p "$out" "$models"
 jobs=$(nproc)
+stage2_steps=${FITP_STAGE2_STEPS:-1200}
+read -r -a fitters <<< "${FITP_CONFIGS:-old new-fixed-steps new}"
 build_tree . "$BUILD" "$jobs" atex_cli > out/build_new.log 2>&1 || { tail -5 out/build_new.log; exit 1; }
 train_only=0
 [ "${2:-}" = --train-only ] && train_only=1
-if [ $train_only = 0 ]; then
-  build_old "$jobs" > out/build_old.log 2>&1 || { tail -5 out/build_old.log; exit 1; }
+old_pid=
+if [ $train_only = 0 ] && [[ " ${fitters[*]} " == *" old "* ]]; then
+  build_old "$jobs" > out/build_old.log 2>&1 &  # on the CPU while stage 1 trains
+  old_pid=$!
 fi
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader | head -1 | tee "$out/gpu.txt"
 
@@ -32,17 +40,24 @@ else
   # Without time-local fast-object Gaussians: .oldsrc's CLI (72791af) predates their chunk
   # (GTWN) and refuses models that have them (E9), so the A/B needs models without.
   train_short_stage1 "$models" 0 --set stage1.fast_objects.enabled=false
-  for textures in uniform adaptive; do
+  for textures in uniform adaptive; do  # both at once: the GPU has room, and these are not timed
     [ -f "$models/$textures.atex" ] && continue
     growth=()
-    [ "$textures" = adaptive ] && growth=(--set 'stage2.growth_steps=[120,240]')
+    [ "$textures" = adaptive ] && growth=(--set "stage2.growth_steps=[$((stage2_steps / 10)),$((stage2_steps / 5))]")
     "$atex" train --data "$bb" --stage 2 --init "$models/stage1.atex" --textures "$textures" \
-      --set stage2.iterations=1200 "${growth[@]}" --out "$models/$textures.atex" --json \
-      > "$models/$textures.train.json" 2> "$models/$textures.log"
+      --set stage2.iterations="$stage2_steps" "${growth[@]}" --out "$models/$textures.atex" --json \
+      > "$models/$textures.train.json" 2> "$models/$textures.log" &
+  done
+  wait $(jobs -p | grep -vx "${old_pid:-none}") || true
+  for textures in uniform adaptive; do
+    [ -f "$models/$textures.atex" ] || { tail -5 "$models/$textures.log"; exit 1; }
   done
   uniform=$models/uniform.atex
   adaptive=$models/adaptive.atex
   [ $train_only = 1 ] && exit 0
+fi
+if [ -n "$old_pid" ]; then
+  wait "$old_pid" || { tail -5 out/build_old.log; exit 1; }
 fi
 budget=$(( $(stat -c %s "$uniform") / 4 ))
 rows=$out/fit_panoptic.jsonl
@@ -50,8 +65,17 @@ rows=$out/fit_panoptic.jsonl
 # Three fitters per model: the old CLI; the new one with fixed steps (--step-growth 1: the old
 # plan, so the same output, sped up by what does not change the plan); the new one at its
 # defaults (growing steps).
-configs=("$OLD|old|" "$BUILD|new-fixed-steps|--step-growth 1" "$BUILD|new|")
-for model in uniform adaptive; do
+configs=()
+for f in "${fitters[@]}"; do
+  case $f in
+    old) configs+=("$OLD|old|") ;;
+    new-fixed-steps) configs+=("$BUILD|new-fixed-steps|--step-growth 1") ;;
+    new) configs+=("$BUILD|new|") ;;
+    *) echo "unknown fitter $f" >&2; exit 2 ;;
+  esac
+done
+read -r -a fit_models <<< "${FITP_MODELS:-uniform adaptive}"
+for model in "${fit_models[@]}"; do
   input=${!model}
   for config in "${configs[@]}"; do
     IFS='|' read -r bin label extra <<< "$config"
@@ -92,3 +116,5 @@ for r in rows:
     print(f"| {r['model']} | {r['build']} | {r['wall_s']} | {r['fit_s']} | {r['measurements']} | {r['bytes']} "
           f"| {r['within_budget']} | {r['verify']} | {r['test_psnr']:.4f} |")
 PY
+tar -czf "$out/fitp.tgz" "$out"/*.jsonl "$out"/*.json "$out"/*.log "$out/gpu.txt" "$models"/*.json "$models"/*.log \
+  2> /dev/null || true

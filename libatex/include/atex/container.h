@@ -83,10 +83,14 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
 
 // Remembers encoded chunks so that encoding an asset again, with some chunks'
 // content unchanged, compresses only the changed ones (the budget fitter encodes
-// hundreds of candidates that differ in one stream). A hit is verified byte for
-// byte against the chunk's uncompressed content and codec settings, so a cached
-// encode returns exactly the bytes of an uncached one. Keeps the most recently
-// used `entries_per_chunk` versions of each chunk type. Thread-safe.
+// hundreds of candidates that differ in one stream). A chunk is keyed by its codec
+// settings and a 128-bit fingerprint of what its content is made from (the values,
+// their shape and encoding), so an unchanged stream is found without quantising it;
+// a cached encode returns the bytes of an uncached one unless two different contents
+// share a fingerprint (a chance of the order of 2^-64 per lookup; docs/fit.md, "What
+// the fitter caches"): where the bytes must never depend on that, encode without it.
+// Keeps the most recently used `entries_per_chunk` versions of each chunk type.
+// Thread-safe.
 class EncodeCache {
  public:
   explicit EncodeCache(int entries_per_chunk = 3);

@@ -267,9 +267,12 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
 StatusOr<Asset> KeepMostImportant(const Asset& asset, const std::vector<uint32_t>& order, double fraction,
                                   std::vector<uint32_t>* kept = nullptr);
 
-// Applies one move to an undecoded asset and its encodings (exposed for tests).
+class TextureShrinkMemo;  // the fitter's memo of texture residuals (texture_shrink.h)
+
+// Applies one move to an undecoded asset and its encodings (exposed for tests). `memo` (may
+// be null) speeds up texture moves on states that share textures; the result is the same.
 Status ApplyMove(const Move& move, const std::vector<uint32_t>& prune_order, Asset* asset, WriteOptions* write,
-                 std::vector<uint32_t>* kept, int min_grid_resolution = 4);
+                 std::vector<uint32_t>* kept, int min_grid_resolution = 4, TextureShrinkMemo* memo = nullptr);
 
 // "80MiB", "80 MB", "1.5GiB", "500KiB", "123456" (bytes; also "B", "KB", "GB" and the
 // single letters K, M, G meaning binary units). kInvalidArgument names the text.

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <functional>
 #include <list>
+#include <memory>
 #include <mutex>
 
 #include "atex/container.h"
@@ -14,15 +15,18 @@
 #include "container/chunks.h"
 #include "container/codecs.h"
 #include "container/draco_codec.h"
+#include "container/fingerprint.h"
 #include "container/format.h"
 #include "container/layout.h"
 
 namespace atex {
 
-// Per chunk type, the most recently used versions first.
+// Per chunk type, the most recently used versions first, each keyed by a fingerprint of
+// what its uncompressed content is made from (fingerprint.h): an unchanged stream is found
+// without quantising it again.
 struct EncodeCache::Impl {
   struct Entry {
-    std::vector<uint8_t> raw;  // the uncompressed content
+    container::Fingerprint content;
     container::CodecParams params;
     int zstd_level = 0;
     bool fallback_to_raw = true;
@@ -34,14 +38,14 @@ struct EncodeCache::Impl {
   std::array<std::list<Entry>, static_cast<size_t>(container::ChunkId::kCount)> chunks;
   uint64_t hits = 0, misses = 0;
 
-  bool Find(container::ChunkId id, const std::vector<uint8_t>& raw, const container::CodecParams& p,
+  bool Find(container::ChunkId id, const container::Fingerprint& content, const container::CodecParams& p,
             const WriteOptions& o, container::OutputChunk* out) {
     std::lock_guard<std::mutex> lock(mutex);
     auto& list = chunks[static_cast<size_t>(id)];
     for (auto it = list.begin(); it != list.end(); ++it) {
       if (it->zstd_level == o.zstd_level && it->fallback_to_raw == o.fallback_to_raw && it->params.codec == p.codec &&
           it->params.element_size == p.element_size && it->params.components == p.components &&
-          it->params.skip == p.skip && it->raw == raw) {
+          it->params.skip == p.skip && it->content == content) {
         *out = it->chunk;
         list.splice(list.begin(), list, it);
         ++hits;
@@ -51,11 +55,11 @@ struct EncodeCache::Impl {
     ++misses;
     return false;
   }
-  void Add(container::ChunkId id, std::vector<uint8_t> raw, const container::CodecParams& p, const WriteOptions& o,
-           const container::OutputChunk& chunk) {
+  void Add(container::ChunkId id, const container::Fingerprint& content, const container::CodecParams& p,
+           const WriteOptions& o, const container::OutputChunk& chunk) {
     std::lock_guard<std::mutex> lock(mutex);
     auto& list = chunks[static_cast<size_t>(id)];
-    list.push_front(Entry{std::move(raw), p, o.zstd_level, o.fallback_to_raw, chunk});
+    list.push_front(Entry{content, p, o.zstd_level, o.fallback_to_raw, chunk});
     while (list.size() > static_cast<size_t>(entries_per_chunk)) list.pop_back();
   }
 };
@@ -139,15 +143,24 @@ struct Context {
   EncodeCache::Impl* cache;  // may be null
 };
 
-// Encode, through the cache when there is one.
+// Encode, through the cache when there is one: `content` fingerprints everything the
+// uncompressed content depends on; `make_raw` builds it, on a miss only.
+using RawMaker = std::function<StatusOr<std::vector<uint8_t>>()>;
+StatusOr<OutputChunk> FinishKeyed(ChunkId id, const Fingerprint& content, const RawMaker& make_raw, CodecParams params,
+                                  const Context& c) {
+  OutputChunk cached;
+  if (c.cache->Find(id, content, params, c.options, &cached)) return cached;
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw, make_raw());
+  ATEX_ASSIGN_OR_RETURN(OutputChunk chunk, Encode(id, std::move(raw), params, c.options));
+  c.cache->Add(id, content, params, c.options, chunk);
+  return chunk;
+}
+
+// Encode content already built (small chunks), through the cache when there is one.
 StatusOr<OutputChunk> Finish(ChunkId id, std::vector<uint8_t> raw, CodecParams params, const Context& c) {
   if (c.cache == nullptr) return Encode(id, std::move(raw), params, c.options);
-  OutputChunk cached;
-  if (c.cache->Find(id, raw, params, c.options, &cached)) return cached;
-  std::vector<uint8_t> key = raw;
-  ATEX_ASSIGN_OR_RETURN(OutputChunk chunk, Encode(id, std::move(raw), params, c.options));
-  c.cache->Add(id, std::move(key), params, c.options, chunk);
-  return chunk;
+  const Fingerprint content = FingerprintBuilder().Add(raw).Finish();
+  return FinishKeyed(id, content, [&raw]() -> StatusOr<std::vector<uint8_t>> { return std::move(raw); }, params, c);
 }
 
 // Codec for JSON / fixed structs / TLAY: zstd unless everything is raw.
@@ -170,23 +183,44 @@ CodecParams StreamCodec(const WriteOptions& o, ScalarEncoding encoding, uint32_t
   return {Codec::kRaw, 0, 0, 0};
 }
 
+// An attribute stream of `rows` × `components` floats. `fingerprint` adds what the values are
+// made from to a fingerprint without building them; `values` gives them (on a cache miss, or
+// always without a cache). Its content also depends on the encoding and the shape.
+ChunkJob LazyStreamJob(ChunkId id, std::function<void(FingerprintBuilder*)> fingerprint,
+                       std::function<const float*(std::vector<float>* storage)> values, uint64_t rows,
+                       uint32_t components, ScalarEncoding encoding, const Context& c, const char* what) {
+  return {id, [=, &c]() -> StatusOr<OutputChunk> {
+            const CodecParams params = StreamCodec(c.options, encoding, components);
+            const RawMaker make_raw = [&]() -> StatusOr<std::vector<uint8_t>> {
+              std::vector<float> storage;
+              return EncodeStream(values(&storage), rows, components, encoding, what);
+            };
+            if (c.cache == nullptr) {
+              ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw, make_raw());
+              return Encode(id, std::move(raw), params, c.options);
+            }
+            FingerprintBuilder key;
+            fingerprint(&key);
+            key.AddValue(rows).AddValue(components).AddValue(encoding);
+            return FinishKeyed(id, key.Finish(), make_raw, params, c);
+          }};
+}
+
+// A stream of values built here (small ones: the MLP, the statistics).
 ChunkJob StreamJob(ChunkId id, std::vector<float> values, uint64_t rows, uint32_t components, ScalarEncoding encoding,
                    const Context& c, const char* what) {
-  return {id, [=, values = std::move(values), &c]() -> StatusOr<OutputChunk> {
-            ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw,
-                                  EncodeStream(values.data(), rows, components, encoding, what));
-            return Finish(id, std::move(raw), StreamCodec(c.options, encoding, components), c);
-          }};
+  auto shared = std::make_shared<const std::vector<float>>(std::move(values));
+  return LazyStreamJob(
+      id, [shared](FingerprintBuilder* key) { key->Add(*shared); },
+      [shared](std::vector<float>*) { return shared->data(); }, rows, components, encoding, c, what);
 }
 
 // A stream over an existing array (no copy); the array outlives the jobs.
 ChunkJob StreamJobRef(ChunkId id, const std::vector<float>& values, uint64_t rows, uint32_t components,
                       ScalarEncoding encoding, const Context& c, const char* what) {
-  return {id, [=, &values, &c]() -> StatusOr<OutputChunk> {
-            ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw,
-                                  EncodeStream(values.data(), rows, components, encoding, what));
-            return Finish(id, std::move(raw), StreamCodec(c.options, encoding, components), c);
-          }};
+  return LazyStreamJob(
+      id, [&values](FingerprintBuilder* key) { key->Add(values); },
+      [&values](std::vector<float>*) { return values.data(); }, rows, components, encoding, c, what);
 }
 
 ChunkJob DracoPositionsJob(const std::vector<float>& positions, uint64_t n, const WriteOptions& o) {
@@ -218,6 +252,34 @@ ChunkJob DracoPositionsJob(const std::vector<float>& positions, uint64_t n, cons
             std::memcpy(chunk.stored.data() + header.size(), draco.data(), draco.size());
             return chunk;
           }};
+}
+
+// SH jobs: sh [N][K][3] splits into DC [N][3] and rest [N][K-1][3], built only when not
+// cached (both are keyed by the whole array: a change to either encodes both again).
+void AddShJobs(const Gaussians& g, const WriteOptions& o, const Context& ctx, std::vector<ChunkJob>* jobs) {
+  const uint64_t n = g.size();
+  const uint32_t k = static_cast<uint32_t>(g.sh_coeffs());
+  const auto sh_key = [&g](FingerprintBuilder* key) { key->Add(g.sh); };
+  jobs->push_back(LazyStreamJob(
+      ChunkId::kGsh0, sh_key,
+      [&g, n, k](std::vector<float>* dc) {
+        dc->resize(n * 3);
+        for (uint64_t i = 0; i < n; ++i) std::copy_n(g.sh.data() + i * k * 3, 3, dc->data() + i * 3);
+        return dc->data();
+      },
+      n, 3, o.sh_dc, ctx, "sh_dc"));
+  if (k > 1) {
+    jobs->push_back(LazyStreamJob(
+        ChunkId::kGshr, sh_key,
+        [&g, n, k](std::vector<float>* rest) {
+          rest->resize(n * (k - 1) * 3);
+          for (uint64_t i = 0; i < n; ++i) {
+            std::copy_n(g.sh.data() + i * k * 3 + 3, (k - 1) * 3, rest->data() + i * (k - 1) * 3);
+          }
+          return rest->data();
+        },
+        n, 3 * (k - 1), o.sh_rest, ctx, "sh_rest"));
+  }
 }
 
 }  // namespace
@@ -254,15 +316,7 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
     jobs.push_back(StreamJobRef(ChunkId::kGrot, g.rotations, n, 4, o.rotations, ctx, "rotations"));
     jobs.push_back(StreamJobRef(ChunkId::kGscl, g.log_scales, n, 3, o.log_scales, ctx, "log_scales"));
     jobs.push_back(StreamJobRef(ChunkId::kGopa, g.opacity_logits, n, 1, o.opacities, ctx, "opacity_logits"));
-    // sh [N][K][3] splits into DC [N][3] and rest [N][K-1][3].
-    std::vector<float> sh_dc(n * 3), sh_rest(n * (k - 1) * 3);
-    for (uint64_t i = 0; i < n; ++i) {
-      const float* row = g.sh.data() + i * k * 3;
-      std::copy(row, row + 3, sh_dc.data() + i * 3);
-      std::copy(row + 3, row + k * 3, sh_rest.data() + i * (k - 1) * 3);
-    }
-    jobs.push_back(StreamJob(ChunkId::kGsh0, std::move(sh_dc), n, 3, o.sh_dc, ctx, "sh_dc"));
-    if (k > 1) jobs.push_back(StreamJob(ChunkId::kGshr, std::move(sh_rest), n, 3 * (k - 1), o.sh_rest, ctx, "sh_rest"));
+    AddShJobs(g, o, ctx, &jobs);
     if (g.has_time_windows()) {  // f32 always: window centres are times, and a narrow window needs their precision
       jobs.push_back(
           StreamJobRef(ChunkId::kGtwn, g.time_windows, n, 2, ScalarEncoding::kFloat32, ctx, "time_windows"));
@@ -278,10 +332,22 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
       jobs.push_back({ChunkId::kDcfg, [&]() {
                         return Finish(ChunkId::kDcfg, EncodeDeformationConfig(d.config), StructuredCodec(o), ctx);
                       }});
-      std::vector<float> grids = FlattenGrids(d);
-      const uint64_t grid_count = grids.size();
-      jobs.push_back(
-          StreamJob(ChunkId::kDgrd, std::move(grids), grid_count, 1, o.deformation_grids, ctx, "deformation grids"));
+      uint64_t grid_count = 0;
+      for (const auto& scale : d.planes) {
+        for (const auto& plane : scale) grid_count += plane.size();
+      }
+      jobs.push_back(LazyStreamJob(
+          ChunkId::kDgrd,
+          [&d](FingerprintBuilder* key) {
+            for (const auto& scale : d.planes) {
+              for (const auto& plane : scale) key->Add(plane);
+            }
+          },
+          [&d](std::vector<float>* grids) {
+            *grids = FlattenGrids(d);
+            return grids->data();
+          },
+          grid_count, 1, o.deformation_grids, ctx, "deformation grids"));
       std::vector<float> mlp = FlattenMlp(d);
       const uint64_t mlp_count = mlp.size();
       jobs.push_back(

@@ -93,6 +93,32 @@ TEST(EncodeCache, ChangedContentIsAMissNotAStaleHit) {
   EXPECT_EQ(*cached_raw, *plain_raw);
 }
 
+// The streams keyed without being built (SH split into DC and rest, the flattened grids):
+// a change to one value of each is a miss of the chunks made from it, and the bytes stay
+// those of an uncached encode.
+TEST(EncodeCache, StreamsBuiltOnAMissAreKeyedByWhatTheyAreMadeOf) {
+  EncodeCache cache;
+  Asset asset = Sample(8, 300, 2, SyntheticTextures::kMixed);
+  const WriteOptions w = Mix(3);
+  ASSERT_TRUE(EncodeAsset(asset, w, &cache).ok());
+  const auto changed_once = [&](int expected_misses) {
+    const uint64_t misses = cache.misses();
+    const auto cached = EncodeAsset(asset, w, &cache);
+    const auto plain = EncodeAsset(asset, w);
+    ASSERT_TRUE(cached.ok() && plain.ok());
+    EXPECT_EQ(*cached, *plain);
+    EXPECT_EQ(cache.misses(), misses + expected_misses);
+  };
+  asset.gaussians.sh[5] += 0.125f;  // an SH rest coefficient: GSH0 and GSHR are keyed by the whole array
+  changed_once(2);
+  asset.gaussians.sh[0] += 0.125f;  // a DC coefficient
+  changed_once(2);
+  ASSERT_TRUE(asset.deformation.has_value());
+  asset.deformation->planes.back().back().back() += 0.25f;  // the last value of the last grid
+  changed_once(1);
+  changed_once(0);  // nothing changed: every chunk a hit
+}
+
 // Every value of two decoded assets, compared exactly (bit patterns: -0 and NaN-free inputs).
 void ExpectSameValues(const Asset& a, const Asset& b, int c) {
   EXPECT_EQ(a.gaussians.positions, b.gaussians.positions) << c;

@@ -7,6 +7,7 @@ list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/chunks.cc
   ${CMAKE_CURRENT_LIST_DIR}/codecs.cc
   ${CMAKE_CURRENT_LIST_DIR}/draco_codec.cc
+  ${CMAKE_CURRENT_LIST_DIR}/fingerprint.cc
   ${CMAKE_CURRENT_LIST_DIR}/half.cc
   ${CMAKE_CURRENT_LIST_DIR}/inspect.cc
   ${CMAKE_CURRENT_LIST_DIR}/layout.cc
@@ -16,6 +17,6 @@ function(atex_container_tests)
   atex_add_test(NAME container_test LABELS container hostile
     SOURCES ${dir}/codecs_test.cc ${dir}/half_test.cc ${dir}/attribute_stream_test.cc ${dir}/layout_test.cc
             ${dir}/chunks_test.cc ${dir}/roundtrip_test.cc ${dir}/compatibility_test.cc ${dir}/inspect_test.cc
-            ${dir}/encode_cache_test.cc ${dir}/asset_compare.cc
+            ${dir}/encode_cache_test.cc ${dir}/fingerprint_test.cc ${dir}/asset_compare.cc
     LIBS atex)
 endfunction()

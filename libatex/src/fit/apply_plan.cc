@@ -20,13 +20,13 @@ StatusOr<State> ApplyRange(State start, const Plan& plan, const std::vector<Move
       m.count = count_k;
     }
     ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &start.asset, &start.write, &start.kept,
-                                   plan.min_grid_resolution));
+                                   plan.min_grid_resolution, start.memo.get()));
   }
   return start;
 }
 
 State InitialState(const Asset& asset, const WriteOptions& write) {
-  State s{asset, write, {}};
+  State s{asset, write, {}, std::make_shared<TextureShrinkMemo>()};
   s.kept.resize(asset.gaussians.size());
   std::iota(s.kept.begin(), s.kept.end(), 0u);
   return s;
@@ -89,7 +89,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
     }
     for (size_t k = 0; k < j; ++k) {
       ATEX_RETURN_IF_ERROR(ApplyMove(plan.moves[k], plan.prune_order, &state.asset, &state.write, &state.kept,
-                                     plan.min_grid_resolution));
+                                     plan.min_grid_resolution, state.memo.get()));
       out.moves.push_back(plan.moves[k]);
     }
     Move last = plan.moves[j];
@@ -102,7 +102,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
         Move m = last;
         m.count = count;
         ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &trial.asset, &trial.write, &trial.kept,
-                                       plan.min_grid_resolution));
+                                       plan.min_grid_resolution, trial.memo.get()));
         ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, encode(trial));
         return static_cast<uint64_t>(trial_bytes.size());
       };
@@ -111,7 +111,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
                                                            bytes_at));
     }
     ATEX_RETURN_IF_ERROR(ApplyMove(last, plan.prune_order, &state.asset, &state.write, &state.kept,
-                                   plan.min_grid_resolution));
+                                   plan.min_grid_resolution, state.memo.get()));
     ATEX_ASSIGN_OR_RETURN(bytes, encode(state));
     last.bytes_after = bytes.size();
     out.moves.push_back(last);
@@ -123,6 +123,9 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
       out.refill_seconds = refill_clock.Lap();
     }
   }
+  // The output itself is encoded without the cache, whose hits rest on content fingerprints
+  // (EncodeCache): its bytes never depend on them.
+  ATEX_ASSIGN_OR_RETURN(bytes, EncodeAsset(state.asset, state.write));
   if (bytes.size() > budget_bytes) {
     // Replaying the plan must reproduce its sizes exactly; anything else is a bug, not a fit.
     return MakeError(StatusCode::kInternal, "fit: replaying the plan gave ", bytes.size(),

@@ -11,7 +11,7 @@
 namespace atex::fit {
 
 Status ApplyMove(const Move& move, const std::vector<uint32_t>& prune_order, Asset* asset, WriteOptions* write,
-                 std::vector<uint32_t>* kept, int min_grid_resolution) {
+                 std::vector<uint32_t>* kept, int min_grid_resolution, TextureShrinkMemo* memo) {
   switch (move.lever) {
     case Lever::kPrune: {
       const size_t n = asset->gaussians.size();
@@ -40,7 +40,7 @@ Status ApplyMove(const Move& move, const std::vector<uint32_t>& prune_order, Ass
       return Status::Ok();
     }
     case Lever::kTextures:
-      return ShrinkTextures(asset, move.count).status();
+      return ShrinkTextures(asset, move.count, memo).status();
     case Lever::kShDegree:
       return LowerShDegree(asset);
     case Lever::kEncoding:

@@ -241,7 +241,7 @@ class CandidateEvaluator {
     };
     e.next = *state_;
     const Status applied = ApplyMove(proposal, plan_->prune_order, &e.next.asset, &e.next.write, &e.next.kept,
-                                     options_.min_grid_resolution);
+                                     options_.min_grid_resolution, e.next.memo.get());
     {
       std::lock_guard<std::mutex> lock(mutex_);
       plan_->timing.apply_seconds += clock.Lap();

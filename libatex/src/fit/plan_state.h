@@ -4,10 +4,12 @@
 
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <numeric>
 #include <vector>
 
 #include "atex/fit.h"
+#include "texture_shrink.h"
 
 namespace atex::fit::internal {
 
@@ -29,6 +31,8 @@ struct State {
   Asset asset;
   WriteOptions write;
   std::vector<uint32_t> kept;
+  // Shared by every state derived from the same InitialState (copies share it).
+  std::shared_ptr<TextureShrinkMemo> memo;
 };
 
 State InitialState(const Asset& asset, const WriteOptions& write);

@@ -1,4 +1,5 @@
 // Giving slack below the budget back after an indivisible last move (ApplyPlan, fit.h).
+#include <memory>
 #include <optional>
 
 #include "atex/fit.h"
@@ -24,14 +25,15 @@ struct Refill {
 // move it tries, at or after the checkpoint).
 class PrefixStates {
  public:
-  PrefixStates(const Asset& asset, const WriteOptions& write, const Plan& plan)
-      : asset_(asset), write_(write), plan_(plan) {}
+  PrefixStates(const Asset& asset, const WriteOptions& write, const Plan& plan, std::shared_ptr<TextureShrinkMemo> memo)
+      : asset_(asset), write_(write), plan_(plan), memo_(std::move(memo)) {}
 
   StatusOr<State> Before(const std::vector<Move>& moves, size_t k) {
     if (!checkpoint_ || checkpoint_index_ > k) {
       const size_t index = k > kStride ? k - kStride : 0;
-      ATEX_ASSIGN_OR_RETURN(State at,
-                            ApplyRange(InitialState(asset_, write_), plan_, moves, 0, index, moves.size(), 0));
+      State start = InitialState(asset_, write_);
+      start.memo = memo_;  // the textures of every replay are mostly the same
+      ATEX_ASSIGN_OR_RETURN(State at, ApplyRange(std::move(start), plan_, moves, 0, index, moves.size(), 0));
       checkpoint_ = std::move(at);
       checkpoint_index_ = index;
     }
@@ -43,6 +45,7 @@ class PrefixStates {
   const Asset& asset_;
   const WriteOptions& write_;
   const Plan& plan_;
+  const std::shared_ptr<TextureShrinkMemo> memo_;
   std::optional<State> checkpoint_;
   size_t checkpoint_index_ = 0;
 };
@@ -88,7 +91,7 @@ StatusOr<std::optional<Refill>> SmallestFittingRefill(const State& prefix, const
 Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
                    std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache) {
   std::optional<size_t> earliest_changed;  // index (after any removals) of the earliest move changed
-  PrefixStates prefixes(asset, write, plan);
+  PrefixStates prefixes(asset, write, plan, state->memo);
   for (size_t k = moves->size() - 1; k-- > 0;) {  // every move before the last, latest first
     ATEX_ASSIGN_OR_RETURN(State prefix, prefixes.Before(*moves, k));
     if (!(*moves)[k].divisible()) {
@@ -124,7 +127,7 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
   ATEX_ASSIGN_OR_RETURN(State replay, prefixes.Before(*moves, *earliest_changed));
   for (size_t i = *earliest_changed; i + 1 < moves->size(); ++i) {
     ATEX_RETURN_IF_ERROR(ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept,
-                                   plan.min_grid_resolution));
+                                   plan.min_grid_resolution, replay.memo.get()));
     ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> step_bytes, EncodeAsset(replay.asset, replay.write, cache));
     (*moves)[i].bytes_after = step_bytes.size();
   }

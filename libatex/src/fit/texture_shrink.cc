@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "atex/detail/texture.h"
+#include "container/fingerprint.h"
 
 namespace atex::fit {
 namespace {
@@ -126,6 +127,34 @@ double ShrinkResidual(const float* src, int height, int width, int new_height, i
   return ShrinkResidualOf(src, TanhOf(src, height, width).data(), height, width, new_height, new_width);
 }
 
+HalvingResiduals HalvingResidualsOf(const float* src, int height, int width) {
+  HalvingResiduals r;
+  if (height * width == 1) return r;
+  const auto tanh_src = TanhOf(src, height, width);
+  if (width > 1) r.width = ShrinkResidualOf(src, tanh_src.data(), height, width, height, width / 2);
+  if (height > 1) r.height = ShrinkResidualOf(src, tanh_src.data(), height, width, height / 2, width);
+  return r;
+}
+
+HalvingResiduals TextureShrinkMemo::Residuals(const float* src, int height, int width) {
+  const container::Fingerprint key = container::FingerprintBuilder()
+                                         .Add(src, sizeof(float) * kTexelChannels * height * width)
+                                         .AddValue(static_cast<uint8_t>(height * 8 + width))
+                                         .Finish();
+  Shard& shard = shards_[key.a % kShards];
+  {
+    std::lock_guard<std::mutex> lock(shard.mutex);
+    const auto it = shard.residuals.find(key);
+    if (it != shard.residuals.end()) return it->second;
+  }
+  const HalvingResiduals r = HalvingResidualsOf(src, height, width);
+  std::lock_guard<std::mutex> lock(shard.mutex);
+  // A bound on memory: a shard that fills up starts again (the values are only recomputed).
+  if (shard.residuals.size() >= kEntriesPerShard) shard.residuals.clear();
+  shard.residuals.emplace(key, r);
+  return r;
+}
+
 uint64_t ShrinkableTexels(const TexturePool& pool) { return pool.texel_count() - pool.size(); }
 
 namespace {
@@ -142,7 +171,7 @@ struct Op {
 
 }  // namespace
 
-StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count) {
+StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count, TextureShrinkMemo* memo) {
   if (!asset->textures) return uint64_t{0};
   TexturePool& pool = *asset->textures;
   const size_t n = pool.size();
@@ -172,14 +201,14 @@ StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count) {
     int choice_count = 0;
     // Halving w (u axis) or h (v axis); the peak scale along the axis breaks ties (smaller matters less).
     const float* src = texels_of(i);
-    const auto tanh_src = TanhOf(src, h, w);
+    const HalvingResiduals r = memo != nullptr ? memo->Residuals(src, h, w) : HalvingResidualsOf(src, h, w);
     if (w > 1) {
-      const double r = ShrinkResidualOf(src, tanh_src.data(), h, w, h, w / 2);
-      choices[choice_count++] = {importance * r * h * w / (h * (w - w / 2)), stat(scale_u_of, i, 0.0f), h, w / 2};
+      choices[choice_count++] = {importance * r.width * h * w / (h * (w - w / 2)), stat(scale_u_of, i, 0.0f), h,
+                                 w / 2};
     }
     if (h > 1) {
-      const double r = ShrinkResidualOf(src, tanh_src.data(), h, w, h / 2, w);
-      choices[choice_count++] = {importance * r * h * w / (w * (h - h / 2)), stat(scale_v_of, i, 0.0f), h / 2, w};
+      choices[choice_count++] = {importance * r.height * h * w / (w * (h - h / 2)), stat(scale_v_of, i, 0.0f),
+                                 h / 2, w};
     }
     const Choice* best = &choices[0];
     for (int c = 1; c < choice_count; ++c) {

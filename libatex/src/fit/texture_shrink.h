@@ -2,7 +2,12 @@
 // damage per texel first.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <mutex>
+#include <unordered_map>
+
+#include "container/fingerprint.h"
 
 #include "atex/model.h"
 #include "atex/status.h"
@@ -22,13 +27,40 @@ void ShrinkTexture(const float* src /* [h][w][4] */, int height, int width, floa
 // positions (the damage per unit of coverage).
 double ShrinkResidual(const float* src /* [h][w][4] */, int height, int width, int new_height, int new_width);
 
+// ShrinkResidual of halving a texture's width and of halving its height (0 for a side of 1).
+struct HalvingResiduals {
+  double width = 0, height = 0;
+};
+HalvingResiduals HalvingResidualsOf(const float* src /* [h][w][4] */, int height, int width);
+
+// Remembers HalvingResidualsOf by the texture's content (a fingerprint of its texels and
+// size): a fit applies the texture lever to hundreds of states that share most textures, and
+// the residuals are most of a texture move's work. Holds at most about two million textures
+// (tens of MB). Thread-safe; the values are those HalvingResidualsOf computes.
+class TextureShrinkMemo {
+ public:
+  HalvingResiduals Residuals(const float* src /* [h][w][4] */, int height, int width);
+
+ private:
+  struct KeyHash {
+    size_t operator()(const container::Fingerprint& f) const { return static_cast<size_t>(f.b); }
+  };
+  struct Shard {
+    std::mutex mutex;
+    std::unordered_map<container::Fingerprint, HalvingResiduals, KeyHash> residuals;
+  };
+  static constexpr size_t kShards = 64, kEntriesPerShard = 32768;
+  std::array<Shard, kShards> shards_;
+};
+
 // Performs `count` shrink operations on `asset`'s texture pool, greedily: each
 // operation halves one axis of one texture (whichever axis does less damage; on a
 // tie the axis with the smaller peak scale), choosing the texture whose damage per
 // removed texel (importance × ShrinkResidual / texels removed) is smallest; ties go
 // to the lower training demand, then the lower index. Stops early when every
-// texture is 1×1. Returns the number of operations done.
-StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count);
+// texture is 1×1. Returns the number of operations done. `memo` (may be null) spares
+// recomputing the residuals of textures seen before; the result is the same.
+StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count, TextureShrinkMemo* memo = nullptr);
 
 // Halves the longer axis of every texture larger than 1×1 at once (the height when
 // both sides are equal), by the same least-squares projection: capacity scaled down

@@ -68,6 +68,32 @@ TEST(TextureShrink, GreedyOrderAndLimits) {
   EXPECT_TRUE(ValidateAsset(a).ok());
 }
 
+// The memo of residuals changes nothing: the same pool with and without it, also when
+// the memo already holds the textures (a second state sharing them) and after some changed.
+TEST(TextureShrink, TheResidualMemoGivesTheSamePools) {
+  TextureShrinkMemo memo;
+  for (int round = 0; round < 3; ++round) {
+    Asset plain = SmallAsset(container::SyntheticTextures::kMixed, 5);
+    if (round == 2) plain.textures->texels[7] += 0.5f;  // one texture's content changed
+    Asset memoised = plain;
+    const uint64_t count = 40 + 30 * round;
+    const uint64_t done = ShrinkTextures(&plain, count).value();
+    EXPECT_GT(done, 0u);
+    ASSERT_EQ(ShrinkTextures(&memoised, count, &memo).value(), done);
+    EXPECT_EQ(plain.textures->heights, memoised.textures->heights) << round;
+    EXPECT_EQ(plain.textures->widths, memoised.textures->widths) << round;
+    EXPECT_EQ(plain.textures->texels, memoised.textures->texels) << round;
+  }
+  const Asset a = SmallAsset(container::SyntheticTextures::kUniform, 6);
+  const float* texels = a.textures->texels.data();
+  const HalvingResiduals direct = HalvingResidualsOf(texels, 4, 4);
+  const HalvingResiduals remembered = memo.Residuals(texels, 4, 4), again = memo.Residuals(texels, 4, 4);
+  EXPECT_EQ(direct.width, remembered.width);
+  EXPECT_EQ(direct.height, again.height);
+  EXPECT_EQ(direct.width, ShrinkResidual(texels, 4, 4, 4, 2));
+  EXPECT_EQ(direct.height, ShrinkResidual(texels, 4, 4, 2, 4));
+}
+
 TEST(TextureShrink, UniformAssetsBecomeAdaptive) {
   Asset a = SmallAsset(container::SyntheticTextures::kUniform);
   a.metadata.texture_mode = "uniform";
