@@ -6,7 +6,7 @@
 namespace atex::container {
 namespace {
 
-// Odd constants with well-spread bits (hex digits of pi and e).
+// Constants with well-spread bits (hexadecimal digits of pi and e).
 constexpr uint64_t kLane[4] = {0xa4093822299f31d0ull, 0x082efa98ec4e6c89ull, 0x452821e638d01377ull,
                                0xbe5466cf34e90c6cull};
 constexpr uint64_t kFinishA = 0xc0ac29b7c97c50ddull, kFinishB = 0x3f84d5b5b5470917ull;
