@@ -4,6 +4,8 @@
 #include <cstring>
 #include <vector>
 
+#include "container/fingerprint.h"
+
 namespace atex::train {
 namespace {
 
@@ -26,19 +28,6 @@ void ForEachTensor(Field& f, F fn) {
     }
   }
 }
-
-struct Fnv1a {
-  uint64_t hash = 0xcbf29ce484222325ull;
-  void Add(const void* data, size_t bytes) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    for (size_t k = 0; k < bytes; ++k) hash = (hash ^ p[k]) * 0x100000001b3ull;
-  }
-  void Add(const std::vector<float>& v) {
-    const uint64_t n = v.size();
-    Add(&n, sizeof(n));
-    Add(v.data(), v.size() * sizeof(float));
-  }
-};
 
 }  // namespace
 
@@ -74,14 +63,14 @@ Status AllReduceStats(Communicator& comm, int kinds, TrainingStats* stats) {
 }
 
 uint64_t ParameterChecksum(const ModelState& state) {
-  Fnv1a h;
+  container::FingerprintBuilder h;  // each vector a span of its own: lengths count
   const Gaussians& g = state.gaussians;
   for (const std::vector<float>* v : {&g.positions, &g.rotations, &g.log_scales, &g.opacity_logits, &g.sh}) h.Add(*v);
   if (state.textures) h.Add(state.textures->texels);
   if (state.deformation) {
     ForEachTensor(*state.deformation, [&](const std::vector<float>& v) { h.Add(v); });
   }
-  return h.hash;
+  return h.Finish().a;
 }
 
 Status DataParallel::ReadStats(Backend& backend, int kinds, TrainingStats* stats) {

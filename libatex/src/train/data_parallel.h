@@ -26,7 +26,7 @@ Status AllReduceSum(Communicator& comm, DeformationField* f);
 // disagreement). Collective.
 Status AllReduceStats(Communicator& comm, int kinds, TrainingStats* stats);
 
-// A 64-bit FNV-1a hash of the bytes of the parameters (Gaussians, texels, deformation field),
+// A 64-bit content fingerprint (container/fingerprint.h) of the parameters (Gaussians, texels, deformation field),
 // equal on two ranks exactly when their replicas are bit-identical (up to hash collisions).
 uint64_t ParameterChecksum(const ModelState& state);
 
