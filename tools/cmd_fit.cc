@@ -48,9 +48,15 @@ using namespace atex;
 // every candidate it measures. glibc serves blocks above 32 MiB with fresh mappings and unmaps
 // them when freed, so every copy paid the kernel's page faults and page zeroing (half of an
 // encode's time on the Panoptic-sized benchmark, bench_fit). Serve them from the heap and keep
-// freed memory in the process instead: the fit reuses it for the next candidate.
+// freed memory in the process instead: the fit reuses it for the next candidate. That holds
+// for the main heap only: a thread's own arena (the candidates are prepared on their own
+// threads) is a set of 64 MiB heaps, and a larger block there is mapped and unmapped anyway,
+// so every thread allocates from the main heap (one arena; the fit's allocations are few and
+// large, so the arena's lock is not contended). On the Panoptic-sized synthetic model this
+// halved the measurements' encode, decode and apply seconds (BENCHMARKS.md, issue 23).
 void KeepFreedMemoryForReuse() {
 #if defined(__GLIBC__)
+  mallopt(M_ARENA_MAX, 1);
   mallopt(M_MMAP_MAX, 0);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
 #endif
@@ -76,7 +82,11 @@ int WriteAndPrint(const FitArgs& a, const std::vector<std::string>& budget_texts
   for (size_t j = 1; j <= run->outputs.size(); ++j) {  // the others first, then the main output
     const size_t k = j % run->outputs.size();
     const std::vector<uint8_t>& bytes = run->outputs[k].fitted.bytes;
+    const auto write_start = std::chrono::steady_clock::now();
     if (Status s = WriteFileAtomic(paths[k], bytes); !s.ok()) return cli::Fail(cmd, s.WithContext(paths[k]));
+    report["seconds"]["command_write_outputs"] =
+        report["seconds"].value("command_write_outputs", 0.0) +
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - write_start).count();
     if (k > 0) {
       report["other_budgets"][k - 1]["path"] = paths[k];
       if (!a.json) std::printf("wrote %s: %zu bytes\n", paths[k].c_str(), bytes.size());
@@ -176,6 +186,15 @@ int RunFit(const FitArgs& a) {
   };
   if (Status s = fit::ValidateFitRunOptions(o, !a.data.empty()); !s.ok()) return cli::Fail(cmd, s);
 
+  // The command's own phases, beside RunFit's in the report's "seconds": where a fit's wall
+  // time goes outside the library (reading, the GPU's start, the dataset, writing).
+  nlohmann::json command_seconds = nlohmann::json::object();
+  auto phase_start = std::chrono::steady_clock::now();
+  const auto phase_done = [&](const char* name) {
+    const auto now = std::chrono::steady_clock::now();
+    command_seconds[name] = std::chrono::duration<double>(now - phase_start).count();
+    phase_start = now;
+  };
   auto input_bytes = ReadFileBytes(a.input);
   if (!input_bytes.ok()) return cli::Fail(cmd, input_bytes.status().WithContext(a.input));
   std::optional<Asset> order_from;
@@ -185,9 +204,11 @@ int RunFit(const FitArgs& a) {
     order_from = std::move(*reference);
     o.order_from = &*order_from;
   }
+  phase_done("command_read_input");
   auto backend = cli::SelectBackend(a.backend);
   if (!backend.ok()) return cli::Fail(cmd, backend.status());
   if (!backend->note.empty()) std::cerr << "atex fit: " << backend->note << "\n";
+  phase_done("command_backend_start");
   std::unique_ptr<Dataset> dataset;
   if (!a.data.empty()) {
     // The ground truth is composited on the asset's background, the one its probe renders have.
@@ -197,10 +218,12 @@ int RunFit(const FitArgs& a) {
     if (!opened.ok()) return cli::Fail(cmd, opened.status());
     dataset = std::move(*opened);
   }
+  phase_done("command_dataset_open");
 
   auto run = fit::RunFit(*input_bytes, dataset.get(), backend->backend.get(), o);
   if (bar) bar->Finish();
   if (!run.ok()) return cli::Fail(cmd, run.status().WithContext(a.input));
+  for (const auto& [name, seconds] : command_seconds.items()) run->json["seconds"][name] = seconds;
   return WriteAndPrint(a, budget_texts, input_bytes->size(), backend->description, &*run);
 }
 

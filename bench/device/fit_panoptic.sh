@@ -90,7 +90,7 @@ for model in "${fit_models[@]}"; do
     verified=true
     "$BUILD/bin/atex" verify "$name.atex" > /dev/null 2>&1 || verified=false
     python3 - "$name" "$model" "$label" "$budget" "$start" "$end" "$verified" >> "$rows" <<'PY'
-import json, os, sys
+import hashlib, json, os, sys
 name, model, label, budget, start, end, verified = sys.argv[1:]
 fit = json.load(open(name + ".fit.json"))
 ev = json.load(open(name + ".eval.json"))
@@ -103,7 +103,10 @@ print(json.dumps({"model": model, "build": label, "budget_bytes": int(budget), "
                   "apply_plan_seconds": timing.get("apply_plan_seconds"),
                   "refill_seconds": timing.get("refill_seconds"), "moves": len(fit.get("moves", [])),
                   "test_psnr": ev["mean"]["psnr"],
-                  "gaussians": fit.get("levers", {}).get("gaussians", {}).get("after")}))
+                  "gaussians": fit.get("levers", {}).get("gaussians", {}).get("after"),
+                  "sha256": hashlib.sha256(open(name + ".atex", "rb").read()).hexdigest(),
+                  "prepared_ahead": timing.get("prepared_ahead"), "prepared_unused": timing.get("prepared_unused"),
+                  "seconds": fit.get("seconds")}))
 PY
   done
 done

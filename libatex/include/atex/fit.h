@@ -177,7 +177,11 @@ struct PlanOptions {
 // candidate move) encodes, decodes and renders the probes. Wall seconds, summed over
 // measurements (see overlap_seconds for the ones prepared at once).
 struct MeasureTiming {
-  int measurements = 0;
+  int measurements = 0;           // states measured: prepared and scored (or found not encodable)
+  // Stale proposals prepared beside a wave in case the lazy greedy refreshes them next
+  // (PlanOptions::parallel_candidates > 1), and of those the ones dropped because a move was
+  // taken first (their apply, encode and decode seconds are counted above all the same).
+  int prepared_ahead = 0, prepared_unused = 0;
   double apply_seconds = 0;       // applying candidate moves to a copy of the state
   double encode_seconds = 0;      // EncodeAsset (through the chunk cache)
   double decode_seconds = 0;      // DecodeAsset of those bytes
@@ -195,6 +199,8 @@ struct MeasureTiming {
 };
 nlohmann::json TimingToJson(const MeasureTiming& timing);
 
+class TextureShrinkMemo;  // the fitter's memo of texture residuals (texture_shrink.h)
+
 struct Plan {
   MeasureTiming timing;
   uint64_t initial_bytes = 0;
@@ -204,6 +210,9 @@ struct Plan {
   // The plan's levers (PlanOptions): ApplyPlan falls back to MinimumBytes's asset with them.
   LeverSet levers = kDefaultLevers;
   int min_grid_resolution = 4;
+  // The texture residuals BuildPlan computed (by texture content), for ApplyPlan's replays of
+  // the same moves; null: ApplyPlan computes its own. Thread-safe; never changes a result.
+  std::shared_ptr<TextureShrinkMemo> texture_memo;
 };
 
 // Fills asset->stats->importance when it is missing (assets converted from other
@@ -267,7 +276,6 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
 StatusOr<Asset> KeepMostImportant(const Asset& asset, const std::vector<uint32_t>& order, double fraction,
                                   std::vector<uint32_t>* kept = nullptr);
 
-class TextureShrinkMemo;  // the fitter's memo of texture residuals (texture_shrink.h)
 
 // Applies one move to an undecoded asset and its encodings (exposed for tests). `memo` (may
 // be null) speeds up texture moves on states that share textures; the result is the same.

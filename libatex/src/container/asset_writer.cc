@@ -8,6 +8,7 @@
 #include <memory>
 #include <mutex>
 
+#include "atex/checksum.h"
 #include "atex/container.h"
 #include "atex/file_io.h"
 #include "container/attribute_stream.h"
@@ -30,7 +31,7 @@ struct EncodeCache::Impl {
     container::CodecParams params;
     int zstd_level = 0;
     bool fallback_to_raw = true;
-    container::OutputChunk chunk;  // what Finish made of it
+    std::shared_ptr<const container::OutputChunk> chunk;  // what Finish made of it, its CRC included
   };
   explicit Impl(int entries) : entries_per_chunk(entries < 1 ? 1 : entries) {}
   const int entries_per_chunk;
@@ -39,7 +40,7 @@ struct EncodeCache::Impl {
   uint64_t hits = 0, misses = 0;
 
   bool Find(container::ChunkId id, const container::Fingerprint& content, const container::CodecParams& p,
-            const WriteOptions& o, container::OutputChunk* out) {
+            const WriteOptions& o, std::shared_ptr<const container::OutputChunk>* out) {
     std::lock_guard<std::mutex> lock(mutex);
     auto& list = chunks[static_cast<size_t>(id)];
     for (auto it = list.begin(); it != list.end(); ++it) {
@@ -56,10 +57,10 @@ struct EncodeCache::Impl {
     return false;
   }
   void Add(container::ChunkId id, const container::Fingerprint& content, const container::CodecParams& p,
-           const WriteOptions& o, const container::OutputChunk& chunk) {
+           const WriteOptions& o, std::shared_ptr<const container::OutputChunk> chunk) {
     std::lock_guard<std::mutex> lock(mutex);
     auto& list = chunks[static_cast<size_t>(id)];
-    list.push_front(Entry{content, p, o.zstd_level, o.fallback_to_raw, chunk});
+    list.push_front(Entry{content, p, o.zstd_level, o.fallback_to_raw, std::move(chunk)});
     while (list.size() > static_cast<size_t>(entries_per_chunk)) list.pop_back();
   }
 };
@@ -78,11 +79,16 @@ uint64_t EncodeCache::misses() const {
 namespace container {
 namespace {
 
+// An encoded chunk, shared with the cache: a hit is not copied.
+using SharedChunk = std::shared_ptr<const OutputChunk>;
+
 // One chunk to produce: its content and how to encode it.
 struct ChunkJob {
   ChunkId id;
-  std::function<StatusOr<OutputChunk>()> make;
+  std::function<StatusOr<SharedChunk>()> make;
 };
+
+SharedChunk Share(OutputChunk chunk) { return std::make_shared<const OutputChunk>(std::move(chunk)); }
 
 bool ValidEncoding(ScalarEncoding e) {
   return static_cast<uint8_t>(e) <= static_cast<uint8_t>(ScalarEncoding::kQuant8);
@@ -146,19 +152,25 @@ struct Context {
 // Encode, through the cache when there is one: `content` fingerprints everything the
 // uncompressed content depends on; `make_raw` builds it, on a miss only.
 using RawMaker = std::function<StatusOr<std::vector<uint8_t>>()>;
-StatusOr<OutputChunk> FinishKeyed(ChunkId id, const Fingerprint& content, const RawMaker& make_raw, CodecParams params,
+StatusOr<SharedChunk> FinishKeyed(ChunkId id, const Fingerprint& content, const RawMaker& make_raw, CodecParams params,
                                   const Context& c) {
-  OutputChunk cached;
+  SharedChunk cached;
   if (c.cache->Find(id, content, params, c.options, &cached)) return cached;
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw, make_raw());
   ATEX_ASSIGN_OR_RETURN(OutputChunk chunk, Encode(id, std::move(raw), params, c.options));
-  c.cache->Add(id, content, params, c.options, chunk);
-  return chunk;
+  // Its CRC once, here: every file that reuses the chunk takes it from the cache.
+  chunk.crc = Crc32c(chunk.stored.data(), chunk.stored.size());
+  SharedChunk shared = Share(std::move(chunk));
+  c.cache->Add(id, content, params, c.options, shared);
+  return shared;
 }
 
 // Encode content already built (small chunks), through the cache when there is one.
-StatusOr<OutputChunk> Finish(ChunkId id, std::vector<uint8_t> raw, CodecParams params, const Context& c) {
-  if (c.cache == nullptr) return Encode(id, std::move(raw), params, c.options);
+StatusOr<SharedChunk> Finish(ChunkId id, std::vector<uint8_t> raw, CodecParams params, const Context& c) {
+  if (c.cache == nullptr) {
+    ATEX_ASSIGN_OR_RETURN(OutputChunk chunk, Encode(id, std::move(raw), params, c.options));
+    return Share(std::move(chunk));
+  }
   const Fingerprint content = FingerprintBuilder().Add(raw).Finish();
   return FinishKeyed(id, content, [&raw]() -> StatusOr<std::vector<uint8_t>> { return std::move(raw); }, params, c);
 }
@@ -189,7 +201,7 @@ CodecParams StreamCodec(const WriteOptions& o, ScalarEncoding encoding, uint32_t
 ChunkJob LazyStreamJob(ChunkId id, std::function<void(FingerprintBuilder*)> fingerprint,
                        std::function<const float*(std::vector<float>* storage)> values, uint64_t rows,
                        uint32_t components, ScalarEncoding encoding, const Context& c, const char* what) {
-  return {id, [=, &c]() -> StatusOr<OutputChunk> {
+  return {id, [=, &c]() -> StatusOr<SharedChunk> {
             const CodecParams params = StreamCodec(c.options, encoding, components);
             const RawMaker make_raw = [&]() -> StatusOr<std::vector<uint8_t>> {
               std::vector<float> storage;
@@ -197,7 +209,8 @@ ChunkJob LazyStreamJob(ChunkId id, std::function<void(FingerprintBuilder*)> fing
             };
             if (c.cache == nullptr) {
               ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw, make_raw());
-              return Encode(id, std::move(raw), params, c.options);
+              ATEX_ASSIGN_OR_RETURN(OutputChunk chunk, Encode(id, std::move(raw), params, c.options));
+              return Share(std::move(chunk));
             }
             FingerprintBuilder key;
             fingerprint(&key);
@@ -224,7 +237,7 @@ ChunkJob StreamJobRef(ChunkId id, const std::vector<float>& values, uint64_t row
 }
 
 ChunkJob DracoPositionsJob(const std::vector<float>& positions, uint64_t n, const WriteOptions& o) {
-  return {ChunkId::kGpos, [&positions, n, &o]() -> StatusOr<OutputChunk> {
+  return {ChunkId::kGpos, [&positions, n, &o]() -> StatusOr<SharedChunk> {
             // The stream header (f32, 3 components, N rows) goes in front, untouched.
             std::vector<uint8_t> header;
             ByteWriter w(&header);
@@ -242,7 +255,7 @@ ChunkJob DracoPositionsJob(const std::vector<float>& positions, uint64_t n, cons
               ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw,
                                     EncodeStream(positions.data(), n, 3, ScalarEncoding::kFloat32, "positions"));
               chunk.stored = std::move(raw);
-              return chunk;
+              return Share(std::move(chunk));
             }
             chunk.codec = {Codec::kDraco, 4, 3, static_cast<uint32_t>(kStreamHeaderSize)};
             // Prefix + bitstream. (Assembled with memcpy: vector::insert here trips a
@@ -250,7 +263,7 @@ ChunkJob DracoPositionsJob(const std::vector<float>& positions, uint64_t n, cons
             chunk.stored.resize(header.size() + draco.size());
             std::memcpy(chunk.stored.data(), header.data(), header.size());
             std::memcpy(chunk.stored.data() + header.size(), draco.data(), draco.size());
-            return chunk;
+            return Share(std::move(chunk));
           }};
 }
 
@@ -301,7 +314,7 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
     const Context ctx{options, cache != nullptr ? cache->impl_ : nullptr};
     std::vector<ChunkJob> jobs;
 
-    jobs.push_back({ChunkId::kMeta, [&]() -> StatusOr<OutputChunk> {
+    jobs.push_back({ChunkId::kMeta, [&]() -> StatusOr<SharedChunk> {
                       ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> raw, EncodeMeta(asset.metadata));
                       return Finish(ChunkId::kMeta, std::move(raw), StructuredCodec(o), ctx);
                     }});
@@ -365,7 +378,7 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
       jobs.push_back(StreamJob(ChunkId::kGsta, std::move(rows), n, 4, ScalarEncoding::kFloat32, ctx, "stats"));
     }
 
-    std::vector<StatusOr<OutputChunk>> results(jobs.size(), Status(StatusCode::kInternal, "chunk not encoded"));
+    std::vector<StatusOr<SharedChunk>> results(jobs.size(), Status(StatusCode::kInternal, "chunk not encoded"));
     // Threads only pay off for large assets (a team costs tens of microseconds,
     // much more on a busy machine).
     const bool parallel = n * (k * 3 + 11) > (size_t{1} << 18);
@@ -381,11 +394,14 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
                             StrCat("out of memory encoding chunk '", TypeInfo(jobs[i].id).type, "'"));
       }
     }
-    std::vector<OutputChunk> chunks;
+    std::vector<SharedChunk> shared;
+    std::vector<const OutputChunk*> chunks;
+    shared.reserve(results.size());
     chunks.reserve(results.size());
     for (auto& result : results) {
       if (!result.ok()) return result.status();
-      chunks.push_back(std::move(result).value());
+      shared.push_back(std::move(result).value());
+      chunks.push_back(shared.back().get());
     }
     return AssembleContainer(chunks);
   } catch (const std::bad_alloc&) {

@@ -170,22 +170,33 @@ Status VerifyChunkCrc(const uint8_t* file, const TocEntry& entry, size_t index) 
 }
 
 std::vector<uint8_t> AssembleContainer(const std::vector<OutputChunk>& chunks) {
+  std::vector<const OutputChunk*> pointers;
+  pointers.reserve(chunks.size());
+  for (const OutputChunk& chunk : chunks) pointers.push_back(&chunk);
+  return AssembleContainer(pointers);
+}
+
+std::vector<uint8_t> AssembleContainer(const std::vector<const OutputChunk*>& chunks) {
   const uint64_t toc_end = kHeaderSize + kTocEntrySize * chunks.size();
   uint64_t file_size = toc_end;
-  for (const OutputChunk& chunk : chunks) file_size = Align8(file_size + chunk.stored.size());
-  std::vector<uint8_t> out(static_cast<size_t>(file_size), 0);
+  for (const OutputChunk* chunk : chunks) file_size = Align8(file_size + chunk->stored.size());
+  // Header and TOC first, zeroed; the chunks are appended after (a large file is not zeroed
+  // first and then overwritten).
+  std::vector<uint8_t> out;
+  out.reserve(static_cast<size_t>(file_size));
+  out.resize(static_cast<size_t>(toc_end), 0);
   std::memcpy(out.data(), kMagic.data(), kMagic.size());
   StoreLE<uint16_t>(out.data() + kHeaderMajor, kVersionMajor);
   // The lowest minor version that has every chunk type used (format_spec/atex.md §10): GTWN came with 1.1.
   const bool uses_1_1 =
-      std::any_of(chunks.begin(), chunks.end(), [](const OutputChunk& c) { return c.type == "GTWN"; });
+      std::any_of(chunks.begin(), chunks.end(), [](const OutputChunk* c) { return c->type == "GTWN"; });
   StoreLE<uint16_t>(out.data() + kHeaderMinor, uint16_t(uses_1_1 ? 1 : 0));
   StoreLE<uint32_t>(out.data() + kHeaderFlags, 0);
   StoreLE<uint64_t>(out.data() + kHeaderFileSize, file_size);
   StoreLE<uint32_t>(out.data() + kHeaderChunkCount, static_cast<uint32_t>(chunks.size()));
   uint64_t offset = toc_end;
   for (size_t i = 0; i < chunks.size(); ++i) {
-    const OutputChunk& chunk = chunks[i];
+    const OutputChunk& chunk = *chunks[i];
     uint8_t* e = out.data() + kHeaderSize + kTocEntrySize * i;
     std::memcpy(e + kTocType, chunk.type.data(), 4);
     StoreLE<uint16_t>(e + kTocFlags, chunk.flags);
@@ -194,11 +205,14 @@ std::vector<uint8_t> AssembleContainer(const std::vector<OutputChunk>& chunks) {
     StoreLE<uint64_t>(e + kTocOffset, offset);
     StoreLE<uint64_t>(e + kTocStoredSize, chunk.stored.size());
     StoreLE<uint64_t>(e + kTocRawSize, chunk.raw_size);
-    StoreLE<uint32_t>(e + kTocCrc, Crc32c(chunk.stored.data(), chunk.stored.size()));
+    StoreLE<uint32_t>(e + kTocCrc, chunk.crc ? *chunk.crc : Crc32c(chunk.stored.data(), chunk.stored.size()));
     StoreLE<uint32_t>(e + kTocComponents, chunk.codec.components);
     StoreLE<uint32_t>(e + kTocSkip, chunk.codec.skip);
-    if (!chunk.stored.empty()) std::memcpy(out.data() + offset, chunk.stored.data(), chunk.stored.size());
     offset = Align8(offset + chunk.stored.size());
+  }
+  for (const OutputChunk* chunk : chunks) {
+    out.insert(out.end(), chunk->stored.begin(), chunk->stored.end());
+    out.resize(static_cast<size_t>(Align8(out.size())), 0);
   }
   StoreLE<uint32_t>(out.data() + kHeaderCrc, HeaderCrc(out.data(), toc_end));
   return out;

@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -50,9 +51,13 @@ struct OutputChunk {
   CodecParams codec;
   uint64_t raw_size = 0;
   std::vector<uint8_t> stored;
+  // CRC32C of `stored` when the encoder knows it already (its cache keeps each chunk's); else
+  // AssembleContainer computes it.
+  std::optional<uint32_t> crc;
 };
 
 // Lays out header, TOC and chunks canonically and fills in every CRC.
 std::vector<uint8_t> AssembleContainer(const std::vector<OutputChunk>& chunks);
+std::vector<uint8_t> AssembleContainer(const std::vector<const OutputChunk*>& chunks);
 
 }  // namespace atex::container

@@ -60,7 +60,7 @@ TEST(Layout, AssembledFileIsCanonical) {
 }
 
 TEST(Layout, EmptyContainer) {
-  const auto f = AssembleContainer({});
+  const auto f = AssembleContainer(std::vector<OutputChunk>{});
   ASSERT_EQ(f.size(), 32u);
   EXPECT_TRUE(ParseContainer(f.data(), f.size(), true).ok());
 }

@@ -75,6 +75,8 @@ using internal::RefillSlack;
 StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes) {
   Stopwatch whole;
   State state = InitialState(asset, write);
+  // The plan's own texture residuals: its moves were applied to these textures already.
+  if (plan.texture_memo) state.memo = plan.texture_memo;
   Fitted out;
   // The searches below encode many states that differ from each other in a few chunks.
   EncodeCache cache;

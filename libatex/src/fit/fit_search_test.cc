@@ -135,6 +135,9 @@ TEST(Plan, TheSamePlanWhateverTheCandidatesPreparedAtOnce) {
   }
   EXPECT_EQ(serial.plan.timing.measurements, parallel.plan.timing.measurements);
   EXPECT_EQ(serial.plan.timing.overlap_seconds, 0.0);
+  // The parallel plan prepared stale proposals ahead of their refresh and used some of them.
+  EXPECT_EQ(serial.plan.timing.prepared_ahead, 0);
+  EXPECT_GT(parallel.plan.timing.prepared_ahead, parallel.plan.timing.prepared_unused);
 }
 
 TEST(Plan, ALeverThatKeepsWinningTakesGrowingSteps) {

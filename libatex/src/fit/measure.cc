@@ -25,7 +25,6 @@ StatusOr<Candidate> Measurer::Encode(const State& state) {
   const double encode_seconds = clock.Lap();
   const auto count = [&](double decode_seconds) {
     std::lock_guard<std::mutex> lock(timing_mutex_);
-    ++timing_->measurements;
     timing_->encode_seconds += encode_seconds;
     timing_->decode_seconds += decode_seconds;
   };
@@ -85,6 +84,7 @@ StatusOr<Measured> Measurer::Start(const Asset& input, const State& initial) {
     ATEX_ASSIGN_OR_RETURN(reference_, renderer_->Render(input));
   }
   timing_->reference_seconds += clock.Lap();
+  ++timing_->measurements;
   ATEX_ASSIGN_OR_RETURN(Candidate c, Encode(initial));
   if (incremental_) {
     c.map.base_of = BaseIndices(current_kept_, initial.kept);

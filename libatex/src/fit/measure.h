@@ -67,7 +67,8 @@ class Measurer {
   // Renders the reference (`input` as given) and measures `initial`, which becomes the current state.
   StatusOr<Measured> Start(const Asset& input, const State& initial);
   // Measures `next`, the current state after `move`: Prepare, then Score. Encoding errors
-  // come back as they are (kOutOfRange: a stream the encoding cannot hold).
+  // come back as they are (kOutOfRange: a stream the encoding cannot hold). The caller
+  // counts it in MeasureTiming::measurements (a prepared candidate may go unused).
   StatusOr<Candidate> Measure(const State& next, const Move& move);
   // The CPU part of a measurement: encode, decode and (on the CPU path) which Gaussians the
   // candidate changes. Several may run at once (BuildPlan prepares a state's proposals in

@@ -118,6 +118,7 @@ struct Cached {
 constexpr double kNoGain = std::numeric_limits<double>::infinity();
 struct Evaluated {
   Cached cost;
+  bool encoded = false;   // the move applied and was encoded (a measurement once scored)
   bool prepared = false;  // false: not a move at this state (cost stays kNoGain)
   State next;             // the state after the move (kept only for the best fresh evaluation)
   Candidate candidate;    // its measurement and decode
@@ -203,29 +204,45 @@ class CandidateEvaluator {
       : options_(options), plan_(plan), measurer_(measurer), state_(state), current_(current),
         width_(CandidatesAtOnce(options, state->asset)) {}
 
-  // One proposal, prepared and scored (the lazy greedy's refresh of a stale best).
-  StatusOr<Evaluated> Evaluate(const Move& proposal) {
-    ATEX_ASSIGN_OR_RETURN(Evaluated e, Prepare(proposal));
-    ATEX_RETURN_IF_ERROR(Score(&e));
-    return e;
-  }
+  size_t width() const { return width_; }
 
   // Evaluates `proposals`, `width_` prepared at a time, and hands each to `remember` in order.
-  template <typename Remember>
-  Status EvaluateAll(const std::vector<const Move*>& proposals, const Remember& remember) {
+  // `spare` (proposals likely to be evaluated next at this state) fill the last wave's free
+  // places: they are prepared, not scored, and handed to `stash` (errors included) for later.
+  template <typename Remember, typename Stash>
+  Status EvaluateAll(const std::vector<const Move*>& proposals, const Remember& remember,
+                     const std::vector<const Move*>& spare, const Stash& stash) {
     for (size_t begin = 0; begin < proposals.size(); begin += width_) {
       const size_t count = std::min(width_, proposals.size() - begin);
+      const bool last = begin + count == proposals.size();
+      std::vector<const Move*> wave(proposals.begin() + static_cast<std::ptrdiff_t>(begin),
+                                    proposals.begin() + static_cast<std::ptrdiff_t>(begin + count));
+      for (size_t i = 0; last && i < spare.size() && wave.size() < width_; ++i) wave.push_back(spare[i]);
       wave_busy_ = 0;
       Stopwatch wave_clock;
-      std::vector<StatusOr<Evaluated>> wave =
-          PrepareAll(count, [&](size_t i) { return Prepare(*proposals[begin + i]); });
+      std::vector<StatusOr<Evaluated>> prepared =
+          PrepareAll(wave.size(), [&](size_t i) { return Prepare(*wave[i]); });
       plan_->timing.overlap_seconds += std::max(0.0, wave_busy_ - wave_clock.Lap());
+      for (size_t i = count; i < wave.size(); ++i) stash(*wave[i], std::move(prepared[i]));
       for (size_t i = 0; i < count; ++i) {
-        if (!wave[i].ok()) return wave[i].status();
-        ATEX_RETURN_IF_ERROR(Score(&*wave[i]));
-        remember(*proposals[begin + i], std::move(*wave[i]));
+        if (!prepared[i].ok()) return prepared[i].status();
+        ATEX_RETURN_IF_ERROR(Score(&*prepared[i]));
+        remember(*wave[i], std::move(*prepared[i]));
       }
     }
+    return Status::Ok();
+  }
+
+  // Scores a prepared proposal; it then counts as a measurement.
+  Status Score(Evaluated* e) {
+    if (e->encoded) ++plan_->timing.measurements;
+    if (!e->prepared) return Status::Ok();
+    ATEX_RETURN_IF_ERROR(measurer_->Score(&e->candidate));
+    const Measured& measured = e->candidate.measured;
+    if (measured.bytes >= current_->bytes) return Status::Ok();
+    const uint64_t saving = current_->bytes - measured.bytes;
+    const double damage = std::max(0.0, measured.distortion - current_->distortion);
+    e->cost = Cached{damage / static_cast<double>(saving), saving, true};
     return Status::Ok();
   }
 
@@ -250,6 +267,7 @@ class CandidateEvaluator {
       busy();
       return e;
     }
+    e.encoded = true;
     auto candidate = measurer_->Prepare(e.next, proposal);
     busy();
     if (!candidate.ok()) {
@@ -262,17 +280,6 @@ class CandidateEvaluator {
     return e;
   }
 
-  Status Score(Evaluated* e) {
-    if (!e->prepared) return Status::Ok();
-    ATEX_RETURN_IF_ERROR(measurer_->Score(&e->candidate));
-    const Measured& measured = e->candidate.measured;
-    if (measured.bytes >= current_->bytes) return Status::Ok();
-    const uint64_t saving = current_->bytes - measured.bytes;
-    const double damage = std::max(0.0, measured.distortion - current_->distortion);
-    e->cost = Cached{damage / static_cast<double>(saving), saving, true};
-    return Status::Ok();
-  }
-
   const PlanOptions& options_;
   Plan* plan_;
   Measurer* measurer_;
@@ -282,6 +289,21 @@ class CandidateEvaluator {
   std::mutex mutex_;       // the timing sums written by preparations running at once
   double wave_busy_ = 0;   // summed preparation seconds of the current wave
 };
+
+// The proposals whose cost was measured at an earlier state and may still win, cheapest
+// first, less `skip`: the lazy greedy refreshes them in this order.
+template <typename Skip>
+std::vector<const Move*> StaleByCost(const std::vector<Move>& proposals, const std::map<MoveKey, Cached>& cache,
+                                     const Skip& skip) {
+  std::vector<const Move*> stale;
+  for (const Move& p : proposals) {
+    const auto it = cache.find(KeyOf(p));
+    if (it != cache.end() && !it->second.fresh && it->second.ratio != kNoGain && !skip(p)) stale.push_back(&p);
+  }
+  std::stable_sort(stale.begin(), stale.end(),
+                   [&](const Move* a, const Move* b) { return Better(cache.at(KeyOf(*a)), cache.at(KeyOf(*b))); });
+  return stale;
+}
 
 void ReportProgress(const PlanOptions& options, const Plan& plan, const Move& move, const Measured& current) {
   if (!options.progress) return;
@@ -302,6 +324,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   plan.levers = options.levers;
   plan.min_grid_resolution = options.min_grid_resolution;
   State state = InitialState(asset, options.write);
+  plan.texture_memo = state.memo;
   // Most candidates change one or two chunks of the current state; the others are
   // compressed once, not once per candidate.
   EncodeCache chunks;
@@ -336,7 +359,23 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
     for (const Move& p : proposals) {
       if (cache.count(KeyOf(p)) == 0) unmeasured.push_back(&p);
     }
-    ATEX_RETURN_IF_ERROR(evaluator.EvaluateAll(unmeasured, remember));
+    // Refreshes are serial (each pass below refreshes one), so the stale proposals likely to be
+    // refreshed next, cheapest first, are prepared beforehand beside the wave being prepared.
+    // A refresh takes its speculative preparation when there is one: made at the same state,
+    // it is the one the refresh would make, so the plan does not depend on it. The rest are
+    // dropped when a move is taken.
+    std::map<MoveKey, StatusOr<Evaluated>> speculative;
+    const auto stash = [&](const Move& p, StatusOr<Evaluated> e) {
+      ++plan.timing.prepared_ahead;
+      speculative.emplace(KeyOf(p), std::move(e));
+    };
+    const auto spare = [&](const std::vector<const Move*>& wave) {
+      return StaleByCost(proposals, cache, [&](const Move& p) {
+        return speculative.count(KeyOf(p)) > 0 ||
+               std::find(wave.begin(), wave.end(), &p) != wave.end();
+      });
+    };
+    ATEX_RETURN_IF_ERROR(evaluator.EvaluateAll(unmeasured, remember, spare(unmeasured), stash));
     // Each pass either takes a fresh best or refreshes a stale one, so proposals.size() + 1
     // passes always suffice.
     const Move* chosen = nullptr;
@@ -349,11 +388,20 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
       if (cost.ratio == kNoGain) break;
       if (cost.fresh && best_fresh && best_fresh->first == KeyOf(*best)) {
         chosen = best;
-      } else {
-        ATEX_ASSIGN_OR_RETURN(Evaluated e, evaluator.Evaluate(*best));
-        remember(*best, std::move(e));
+        continue;
       }
+      const auto ready = speculative.find(KeyOf(*best));
+      if (ready == speculative.end()) {
+        ATEX_RETURN_IF_ERROR(evaluator.EvaluateAll({best}, remember, spare({best}), stash));
+        continue;
+      }
+      StatusOr<Evaluated> e = std::move(ready->second);
+      speculative.erase(ready);
+      if (!e.ok()) return e.status();
+      ATEX_RETURN_IF_ERROR(evaluator.Score(&*e));
+      remember(*best, std::move(*e));
     }
+    plan.timing.prepared_unused += static_cast<int>(speculative.size());
     if (chosen == nullptr) break;  // no lever saves bytes any more
     Evaluated& taken = best_fresh->second;
     ATEX_ASSIGN_OR_RETURN(Measured measured, measurer.Take(taken.next, taken.candidate));
