@@ -116,6 +116,28 @@ TEST(Plan, ThousandRandomBudgetsNeverOver) {
   }
 }
 
+// ApplyPlan reuses the plan's texture residuals (Plan::texture_memo) for its replays; the
+// memo only saves time: without it (null, or a fresh one) every budget gets the same file.
+TEST(Plan, ThePlansTextureMemoGivesTheSameFits) {
+  PlanFixture f = MakePlan(container::SyntheticTextures::kMixed, 11);
+  ASSERT_NE(f.plan.texture_memo, nullptr);
+  Plan without = f.plan;
+  without.texture_memo = nullptr;
+  const uint64_t lo = f.plan.moves.back().bytes_after, hi = f.plan.initial_bytes;
+  std::mt19937_64 rng(3);
+  int refilled = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    const uint64_t budget = lo + rng() % (hi - lo + 1);
+    auto with_memo = ApplyPlan(f.asset, f.plan, f.write, budget);
+    auto plain = ApplyPlan(f.asset, without, f.write, budget);
+    ASSERT_TRUE(with_memo.ok()) << with_memo.status().ToString();
+    ASSERT_TRUE(plain.ok()) << plain.status().ToString();
+    EXPECT_EQ(with_memo->bytes, plain->bytes) << budget;
+    refilled += with_memo->refill_seconds > 0;
+  }
+  EXPECT_GT(refilled, 0);  // the refill's replays used the memo too
+}
+
 // A greedy plan can stop above MinimumBytes: near the end, removing one more Gaussian may not
 // shrink the compressed file, so no move saves bytes (the sample asset's plan stopped at 7,672
 // bytes against a minimum of 7,616, and a 7,665-byte budget that CheckBudget accepted was
