@@ -276,7 +276,6 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
 StatusOr<Asset> KeepMostImportant(const Asset& asset, const std::vector<uint32_t>& order, double fraction,
                                   std::vector<uint32_t>* kept = nullptr);
 
-
 // Applies one move to an undecoded asset and its encodings (exposed for tests). `memo` (may
 // be null) speeds up texture moves on states that share textures; the result is the same.
 Status ApplyMove(const Move& move, const std::vector<uint32_t>& prune_order, Asset* asset, WriteOptions* write,

@@ -204,8 +204,6 @@ class CandidateEvaluator {
       : options_(options), plan_(plan), measurer_(measurer), state_(state), current_(current),
         width_(CandidatesAtOnce(options, state->asset)) {}
 
-  size_t width() const { return width_; }
-
   // Evaluates `proposals`, `width_` prepared at a time, and hands each to `remember` in order.
   // `spare` (proposals likely to be evaluated next at this state) fill the last wave's free
   // places: they are prepared, not scored, and handed to `stash` (errors included) for later.
