@@ -127,14 +127,18 @@ void ExpectSameValues(const Asset& a, const Asset& b, int c) {
   EXPECT_EQ(a.gaussians.opacity_logits, b.gaussians.opacity_logits) << c;
   EXPECT_EQ(a.gaussians.sh, b.gaussians.sh) << c;
   ASSERT_EQ(a.textures.has_value(), b.textures.has_value()) << c;
-  if (a.textures) EXPECT_EQ(a.textures->texels, b.textures->texels) << c;
+  if (a.textures) {
+    EXPECT_EQ(a.textures->texels, b.textures->texels) << c;
+  }
   ASSERT_EQ(a.deformation.has_value(), b.deformation.has_value()) << c;
   if (a.deformation) {
     EXPECT_EQ(a.deformation->planes, b.deformation->planes) << c;
     EXPECT_EQ(EncodeAsset(a).value(), EncodeAsset(b).value()) << c;  // the MLP and the rest
   }
   ASSERT_EQ(a.stats.has_value(), b.stats.has_value()) << c;
-  if (a.stats) EXPECT_EQ(a.stats->importance, b.stats->importance) << c;
+  if (a.stats) {
+    EXPECT_EQ(a.stats->importance, b.stats->importance) << c;
+  }
 }
 
 TEST(DecodeCache, CachedDecodesEqualUncachedAcrossChangingFiles) {
