@@ -11,7 +11,8 @@
 # with the current tree (shortened stage 1 of common.sh without fast-object Gaussians, which the
 # old CLI cannot read, then FITP_STAGE2_STEPS (default 1,200) stage-2 steps uniform and adaptive
 # at the same time on the GPU, growth at 10 % and 20 % of them), while .oldsrc builds on the CPU.
-# FITP_CONFIGS picks the fitters (default "old new-fixed-steps new"), FITP_MODELS the models and
+# FITP_CONFIGS picks the fitters (default "old new-fixed-steps new"; new-pN: the current tree with
+# --parallel-candidates N), FITP_MODELS the models and
 # their order (default "uniform adaptive"). Results:
 # OUT_DIR/fit_panoptic.jsonl (one row per fit), a table on stdout, and OUT_DIR/fitp.tgz (rows,
 # reports, logs: one file, as a device call returns only a few).
@@ -71,6 +72,7 @@ for f in "${fitters[@]}"; do
     old) configs+=("$OLD|old|") ;;
     new-fixed-steps) configs+=("$BUILD|new-fixed-steps|--step-growth 1") ;;
     new) configs+=("$BUILD|new|") ;;
+    new-p[0-9]*) configs+=("$BUILD|$f|--parallel-candidates ${f#new-p}") ;;  # e.g. new-p2: two at once
     *) echo "unknown fitter $f" >&2; exit 2 ;;
   esac
 done
