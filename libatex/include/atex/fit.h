@@ -120,6 +120,11 @@ class ProbeRenderer {
   StatusOr<std::vector<Image>> Render(const Asset& asset);
   // Renders `cameras` and returns one image per camera.
   StatusOr<std::vector<Image>> RenderCameras(const Asset& asset, const std::vector<Camera>& cameras);
+  // Renders every probe, as Render, from an asset's render state and request
+  // (train::RenderStateFromAsset, train::RenderRequestFor), which a caller can build on
+  // another thread beforehand. GPU backends only: kUnsupported on the CPU renderer
+  // (cpu_renderer() not null), which renders assets.
+  StatusOr<std::vector<Image>> RenderState(const train::ModelState& state, const train::RenderRequest& request);
   // EnsureImportance over this renderer's probes; on the CPU its deformations stay
   // cached for the plan's renders of the same asset.
   Status EnsureImportance(Asset* asset);
@@ -134,6 +139,9 @@ class ProbeRenderer {
   internal::CpuProbeRenderer* cpu_renderer() { return cpu_.get(); }
 
  private:
+  StatusOr<std::vector<Image>> RenderOnBackend(const train::ModelState& state, const train::RenderRequest& request,
+                                               const std::vector<Camera>& cameras);
+
   train::Backend* backend_;
   std::vector<Probe> probes_;
   std::unique_ptr<internal::CpuProbeRenderer> cpu_;  // when backend_ is null or the CPU backend
@@ -185,6 +193,9 @@ struct MeasureTiming {
   double apply_seconds = 0;       // applying candidate moves to a copy of the state
   double encode_seconds = 0;      // EncodeAsset (through the chunk cache)
   double decode_seconds = 0;      // DecodeAsset of those bytes
+  // On a GPU backend, the decoded candidate's render state (train::RenderStateFromAsset),
+  // built while preparing so that it runs beside other preparations, not before each render.
+  double render_state_seconds = 0;
   double render_seconds = 0;      // probe renders: backend load + one render per probe
   double distortion_seconds = 0;  // MeanSquaredError against the reference renders
   double reference_seconds = 0;   // the input's reference renders (once per plan)

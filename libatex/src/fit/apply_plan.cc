@@ -1,6 +1,7 @@
 // Applying a plan to a budget (fit.h): replay, the count search of the last divisible move, and the
 // refill (refill.cc) below an indivisible one.
 #include <numeric>
+#include <optional>
 
 #include "atex/fit.h"
 #include "count_search.h"
@@ -89,12 +90,17 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
       const uint64_t reached = plan.moves.empty() ? bytes.size() : plan.moves.back().bytes_after;
       return SmallestFallback(asset, plan, write, budget_bytes, reached);
     }
+    Move last = plan.moves[j];
+    // The refill after an indivisible last move starts from the state before its first prefix
+    // move: kept from this replay (one copy) instead of replayed again from the input.
+    const size_t checkpoint_index = last.divisible() ? j : internal::FirstRefillPrefix(plan.moves, j);
+    std::optional<State> checkpoint;
     for (size_t k = 0; k < j; ++k) {
+      if (k == checkpoint_index) checkpoint = state;
       ATEX_RETURN_IF_ERROR(ApplyMove(plan.moves[k], plan.prune_order, &state.asset, &state.write, &state.kept,
                                      plan.min_grid_resolution, state.memo.get()));
       out.moves.push_back(plan.moves[k]);
     }
-    Move last = plan.moves[j];
     if (last.divisible() && last.count > 1) {
       // Smallest count that fits: count 0 is the state before the move (above the budget, as
       // every earlier move's size), the full count is known to fit (count_search.h).
@@ -121,7 +127,8 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
       // An indivisible last move (an encoding, the SH degree, the grid) can land far below the
       // budget; give the slack back by undoing moves before it, latest first.
       Stopwatch refill_clock;
-      ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes, &cache));
+      ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes, &cache,
+                                       std::move(checkpoint), checkpoint_index));
       out.refill_seconds = refill_clock.Lap();
     }
   }

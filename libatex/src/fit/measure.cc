@@ -3,6 +3,7 @@
 
 #include <numeric>
 
+#include "atex/train/trainer.h"
 #include "cpu_probes.h"
 
 namespace atex::fit::internal {
@@ -45,11 +46,13 @@ StatusOr<Candidate> Measurer::Encode(const State& state) {
   return c;
 }
 
-StatusOr<double> Measurer::Distortion(const Asset& decoded, const CandidateMap& map,
+StatusOr<double> Measurer::Distortion(const Candidate& candidate, const CandidateMap& map,
                                       std::shared_ptr<const IncrementalProbes::Pending>* pending) {
   Stopwatch clock;
   StatusOr<std::vector<Image>> renders =
-      incremental_ ? incremental_->Render(decoded, map, pending) : renderer_->Render(decoded);
+      incremental_          ? incremental_->Render(candidate.decoded, map, pending)
+      : candidate.render_state ? renderer_->RenderState(*candidate.render_state, train::RenderRequestFor(candidate.decoded))
+                             : renderer_->Render(candidate.decoded);
   if (!renders.ok()) return renders.status();
   timing_->render_seconds += clock.Lap();
   ATEX_ASSIGN_OR_RETURN(double mse, MeanSquaredError(*renders, reference_));
@@ -90,12 +93,19 @@ StatusOr<Measured> Measurer::Start(const Asset& input, const State& initial) {
     c.map.base_of = BaseIndices(current_kept_, initial.kept);
     c.map.changed = ChangedGaussians(current_, c.decoded, c.map.base_of);
   }
-  ATEX_ASSIGN_OR_RETURN(c.measured.distortion, Distortion(c.decoded, c.map, &c.pending));
+  ATEX_ASSIGN_OR_RETURN(c.measured.distortion, Distortion(c, c.map, &c.pending));
   return Take(initial, c);
 }
 
 StatusOr<Candidate> Measurer::Prepare(const State& next, const Move& move) {
   ATEX_ASSIGN_OR_RETURN(Candidate c, Encode(next));
+  if (!incremental_) {
+    Stopwatch clock;
+    c.render_state = std::make_shared<const train::ModelState>(train::RenderStateFromAsset(c.decoded));
+    const double seconds = clock.Lap();
+    std::lock_guard<std::mutex> lock(timing_mutex_);
+    timing_->render_state_seconds += seconds;
+  }
   if (incremental_) {
     c.map.base_of = BaseIndices(current_kept_, next.kept);
     c.range_stable = prune_ != PruneMeasure::kExact && move.lever == Lever::kPrune;
@@ -105,7 +115,8 @@ StatusOr<Candidate> Measurer::Prepare(const State& next, const Move& move) {
 }
 
 Status Measurer::Score(Candidate* c) {
-  ATEX_ASSIGN_OR_RETURN(c->measured.distortion, Distortion(c->decoded, c->map, &c->pending));
+  ATEX_ASSIGN_OR_RETURN(c->measured.distortion, Distortion(*c, c->map, &c->pending));
+  c->render_state.reset();  // rendered: its memory is a whole asset's
   return Status::Ok();
 }
 
@@ -124,7 +135,7 @@ StatusOr<Measured> Measurer::Take(const State& next, const Candidate& candidate)
     CandidateMap exact = candidate.map;
     exact.changed = ChangedGaussians(current_, candidate.decoded, exact.base_of);
     ++timing_->measurements;  // alone: no Prepare runs during Take
-    ATEX_ASSIGN_OR_RETURN(measured.distortion, Distortion(candidate.decoded, exact, &pending));
+    ATEX_ASSIGN_OR_RETURN(measured.distortion, Distortion(candidate, exact, &pending));
   }
   ATEX_RETURN_IF_ERROR(incremental_->Commit(*pending));
   current_ = candidate.decoded;

@@ -54,6 +54,8 @@ struct Candidate {
   CandidateMap map;      // against the current state (CPU only)
   bool range_stable = false;
   std::shared_ptr<const IncrementalProbes::Pending> pending;  // CPU only
+  // GPU only: `decoded`'s render state, built by Prepare (beside other preparations) for Score.
+  std::shared_ptr<const train::ModelState> render_state;
 };
 
 class Measurer {
@@ -82,7 +84,7 @@ class Measurer {
 
  private:
   StatusOr<Candidate> Encode(const State& state);  // thread-safe (timing_ under timing_mutex_)
-  StatusOr<double> Distortion(const Asset& decoded, const CandidateMap& map,
+  StatusOr<double> Distortion(const Candidate& candidate, const CandidateMap& map,
                               std::shared_ptr<const IncrementalProbes::Pending>* pending);
 
   ProbeRenderer* renderer_;

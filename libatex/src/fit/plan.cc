@@ -181,14 +181,15 @@ std::vector<StatusOr<Evaluated>> PrepareAll(size_t count, const Fn& fn) {
 
 // How many candidates to prepare at once: PlanOptions::parallel_candidates, or for 0 the
 // cores (at most 4), fewer when that many copies of the asset would not fit in half the
-// machine's memory (each candidate holds about three: the state's copy, its file, its decode).
+// machine's memory (each candidate holds about four: the state's copy, its file, its decode and,
+// on a GPU backend, the decode's render state).
 size_t CandidatesAtOnce(const PlanOptions& options, const Asset& asset) {
   if (options.parallel_candidates > 0) return static_cast<size_t>(options.parallel_candidates);
   const Gaussians& g = asset.gaussians;
   uint64_t bytes = sizeof(float) * (g.positions.size() + g.rotations.size() + g.log_scales.size() +
                                     g.opacity_logits.size() + g.sh.size() + g.time_windows.size());
   if (asset.textures) bytes += sizeof(float) * asset.textures->texels.size();
-  const uint64_t per_candidate = 3 * std::max<uint64_t>(bytes, 1);
+  const uint64_t per_candidate = 4 * std::max<uint64_t>(bytes, 1);
   const uint64_t fit = MemoryLimit(UINT64_MAX) / per_candidate;
   return std::clamp<size_t>(std::min<uint64_t>(fit, std::thread::hardware_concurrency()), 1, 4);
 }

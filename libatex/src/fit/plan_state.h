@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <vector>
 
 #include "atex/fit.h"
@@ -54,7 +55,15 @@ StatusOr<State> ApplyRange(State start, const Plan& plan, const std::vector<Move
 // the budget binds there and the refill stops. An indivisible move (an encoding, the SH
 // degree, the grid) is undone whole when the output without it still fits and grows, else
 // skipped. Every state taken was encoded and fits, so the output stays within the budget.
+// `checkpoint`, when given, is the state after moves[0, checkpoint_index), replayed once by
+// the caller: the refill builds the states it needs from it instead of from the input.
 Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
-                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache);
+                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache,
+                   std::optional<State> checkpoint = std::nullopt, size_t checkpoint_index = 0);
+
+// The index of the first move RefillSlack replays from a prefix when moves[0, end) come before
+// an indivisible last move: the latest one that is no encoding move (those are undone without
+// a replay). `end` when there is none.
+size_t FirstRefillPrefix(const std::vector<Move>& moves, size_t end);
 
 }  // namespace atex::fit::internal

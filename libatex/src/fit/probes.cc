@@ -123,8 +123,24 @@ ProbeRenderer::~ProbeRenderer() = default;
 
 StatusOr<std::vector<Image>> ProbeRenderer::RenderCameras(const Asset& asset, const std::vector<Camera>& cameras) {
   if (cpu_) return cpu_->Render(asset, cameras, train::RenderRequestFor(asset));
-  ATEX_RETURN_IF_ERROR(backend_->Load(train::RenderStateFromAsset(asset)));
-  const train::RenderRequest request = train::RenderRequestFor(asset);
+  return RenderOnBackend(train::RenderStateFromAsset(asset), train::RenderRequestFor(asset), cameras);
+}
+
+StatusOr<std::vector<Image>> ProbeRenderer::RenderState(const train::ModelState& state,
+                                                        const train::RenderRequest& request) {
+  if (cpu_) {
+    return MakeError(StatusCode::kUnsupported,
+                     "probe renders from a render state need a GPU backend; the CPU renderer renders assets");
+  }
+  std::vector<Camera> cameras;
+  for (const Probe& p : probes_) cameras.push_back(p.camera);
+  return RenderOnBackend(state, request, cameras);
+}
+
+StatusOr<std::vector<Image>> ProbeRenderer::RenderOnBackend(const train::ModelState& state,
+                                                            const train::RenderRequest& request,
+                                                            const std::vector<Camera>& cameras) {
+  ATEX_RETURN_IF_ERROR(backend_->Load(state));
   std::vector<Image> images;
   images.reserve(cameras.size());
   for (const Camera& camera : cameras) {

@@ -25,8 +25,11 @@ struct Refill {
 // move it tries, at or after the checkpoint).
 class PrefixStates {
  public:
-  PrefixStates(const Asset& asset, const WriteOptions& write, const Plan& plan, std::shared_ptr<TextureShrinkMemo> memo)
-      : asset_(asset), write_(write), plan_(plan), memo_(std::move(memo)) {}
+  // `checkpoint`, when given, is the state after moves[0, checkpoint_index).
+  PrefixStates(const Asset& asset, const WriteOptions& write, const Plan& plan, std::shared_ptr<TextureShrinkMemo> memo,
+               std::optional<State> checkpoint, size_t checkpoint_index)
+      : asset_(asset), write_(write), plan_(plan), memo_(std::move(memo)), checkpoint_(std::move(checkpoint)),
+        checkpoint_index_(checkpoint_index) {}
 
   StatusOr<State> Before(const std::vector<Move>& moves, size_t k) {
     if (!checkpoint_ || checkpoint_index_ > k) {
@@ -78,7 +81,40 @@ StatusOr<std::optional<Refill>> SmallestFittingRefill(const State& prefix, const
   return best;
 }
 
+// Undoes the encoding move moves[k] when the output without it fits the budget and grows:
+// returns whether it did (then `state` and `bytes` are the output's). Encoding moves change
+// only the write options (ApplyMove), so the output without moves[k] is the current asset
+// with moves[k]'s stream back at the encoding it had before moves[k]: no replay, and one
+// stream encoded (the others come from the cache). When a later move sets the same stream,
+// undoing moves[k] changes nothing.
+StatusOr<bool> UndoEncoding(const WriteOptions& write, const std::vector<Move>& moves, size_t k, uint64_t budget,
+                            State* state, std::vector<uint8_t>* bytes, EncodeCache* cache) {
+  const Move& undone = moves[k];
+  for (size_t i = k + 1; i < moves.size(); ++i) {
+    if (moves[i].lever == Lever::kEncoding && moves[i].stream == undone.stream) return false;
+  }
+  ScalarEncoding before = GetEncoding(write, undone.stream);
+  for (size_t i = 0; i < k; ++i) {
+    if (moves[i].lever == Lever::kEncoding && moves[i].stream == undone.stream) before = moves[i].encoding;
+  }
+  WriteOptions without = state->write;
+  SetEncoding(&without, undone.stream, before);
+  auto trial_bytes = EncodeAsset(state->asset, without, cache);
+  // A stream the earlier encoding cannot hold is not an undo.
+  if (!trial_bytes.ok() || trial_bytes->size() > budget || trial_bytes->size() <= bytes->size()) return false;
+  state->write = without;
+  *bytes = std::move(*trial_bytes);
+  return true;
+}
+
 }  // namespace
+
+size_t FirstRefillPrefix(const std::vector<Move>& moves, size_t end) {
+  for (size_t k = end; k-- > 0;) {
+    if (moves[k].lever != Lever::kEncoding) return k;
+  }
+  return end;
+}
 
 // After an indivisible last move: gives the slack below the budget back by undoing the moves
 // before it, latest first (the plan took moves cheapest first, so the latest ones did the
@@ -89,13 +125,27 @@ StatusOr<std::optional<Refill>> SmallestFittingRefill(const State& prefix, const
 // degree, the grid) is undone whole when the output without it still fits and grows, else
 // skipped. Every state taken was encoded and fits, so the output stays within the budget.
 Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
-                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache) {
+                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache,
+                   std::optional<State> checkpoint, size_t checkpoint_index) {
   std::optional<size_t> earliest_changed;  // index (after any removals) of the earliest move changed
-  PrefixStates prefixes(asset, write, plan, state->memo);
+  PrefixStates prefixes(asset, write, plan, state->memo, std::move(checkpoint), checkpoint_index);
+  // The latest prefix built (the state after moves[0, prefix_index)), kept for the replay at
+  // the end: the refill only changes moves at or after the index it tries.
+  std::optional<State> prefix;
+  size_t prefix_index = 0;
   for (size_t k = moves->size() - 1; k-- > 0;) {  // every move before the last, latest first
-    ATEX_ASSIGN_OR_RETURN(State prefix, prefixes.Before(*moves, k));
+    if ((*moves)[k].lever == Lever::kEncoding) {
+      ATEX_ASSIGN_OR_RETURN(const bool undone, UndoEncoding(write, *moves, k, budget, state, bytes, cache));
+      if (undone) {
+        moves->erase(moves->begin() + static_cast<std::ptrdiff_t>(k));
+        earliest_changed = k;
+      }
+      continue;
+    }
+    ATEX_ASSIGN_OR_RETURN(prefix, prefixes.Before(*moves, k));
+    prefix_index = k;
     if (!(*moves)[k].divisible()) {
-      auto trial = ApplyRange(std::move(prefix), plan, *moves, k, moves->size(), k, 0);
+      auto trial = ApplyRange(*prefix, plan, *moves, k, moves->size(), k, 0);
       if (!trial.ok()) continue;  // the moves after it do not apply without it: keep it
       auto trial_bytes = EncodeAsset(trial->asset, trial->write, cache);
       if (!trial_bytes.ok() || trial_bytes->size() > budget || trial_bytes->size() <= bytes->size()) continue;
@@ -106,7 +156,7 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
       continue;
     }
     ATEX_ASSIGN_OR_RETURN(std::optional<Refill> refill,
-                          SmallestFittingRefill(prefix, plan, *moves, k, budget, bytes->size(), cache));
+                          SmallestFittingRefill(*prefix, plan, *moves, k, budget, bytes->size(), cache));
     if (!refill) break;  // move k is needed whole: the budget binds here
     *state = std::move(refill->state);
     *bytes = std::move(refill->bytes);
@@ -124,7 +174,12 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
   // From the last checkpoint, not the input: every move before the earliest changed one is as
   // it was when the checkpoint was taken.
   // The last move (never changed here) ends at the output, whose size is known.
-  ATEX_ASSIGN_OR_RETURN(State replay, prefixes.Before(*moves, *earliest_changed));
+  State replay;
+  if (prefix && prefix_index == *earliest_changed) {
+    replay = std::move(*prefix);
+  } else {
+    ATEX_ASSIGN_OR_RETURN(replay, prefixes.Before(*moves, *earliest_changed));
+  }
   for (size_t i = *earliest_changed; i + 1 < moves->size(); ++i) {
     ATEX_RETURN_IF_ERROR(ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept,
                                    plan.min_grid_resolution, replay.memo.get()));

@@ -113,19 +113,20 @@ nlohmann::json TimingToJson(const MeasureTiming& t) {
   // Apply, encode and decode were paid by unused speculative preparations too.
   const int prepared = t.measurements + t.prepared_unused;
   const double per_prepared = prepared > 0 ? 1.0 / prepared : 0.0;
-  const double parts = t.apply_seconds + t.encode_seconds + t.decode_seconds + t.render_seconds +
+  const double parts = t.apply_seconds + t.encode_seconds + t.decode_seconds + t.render_state_seconds +
+                       t.render_seconds +
                        t.distortion_seconds + t.reference_seconds + t.propose_seconds - t.overlap_seconds;
   return {{"measurements", t.measurements},
           {"prepared_ahead", t.prepared_ahead},
           {"prepared_unused", t.prepared_unused},
           {"seconds", {{"apply", t.apply_seconds}, {"encode", t.encode_seconds}, {"decode", t.decode_seconds},
-                       {"render", t.render_seconds}, {"distortion", t.distortion_seconds},
+                       {"render_state", t.render_state_seconds}, {"render", t.render_seconds}, {"distortion", t.distortion_seconds},
                        {"reference", t.reference_seconds}, {"propose", t.propose_seconds},
                        {"overlap", t.overlap_seconds}, {"other", std::max(0.0, t.total_seconds - parts)},
                        {"total", t.total_seconds}}},
           {"seconds_per_measurement",
            {{"apply", t.apply_seconds * per_prepared}, {"encode", t.encode_seconds * per_prepared},
-            {"decode", t.decode_seconds * per_prepared},
+            {"decode", t.decode_seconds * per_prepared}, {"render_state", t.render_state_seconds * per_prepared},
             {"render", t.render_seconds * per}, {"distortion", t.distortion_seconds * per}}},
           {"probe_cache",
            {{"deformed", t.probe_cache.deformed}, {"deform_reused", t.probe_cache.deform_reused},

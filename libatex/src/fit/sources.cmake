@@ -22,7 +22,7 @@ list(APPEND ATEX_LIB_SOURCES
 function(atex_fit_tests)
   set(dir ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
   atex_add_test(NAME fit_test LABELS fit LIBS atex
-    SOURCES ${dir}/fit_test.cc ${dir}/fit_search_test.cc ${dir}/fit_levers_test.cc ${dir}/fit_run_test.cc ${dir}/texture_shrink_test.cc ${dir}/fit_time_windows_test.cc)
+    SOURCES ${dir}/fit_test.cc ${dir}/fit_search_test.cc ${dir}/fit_levers_test.cc ${dir}/fit_run_test.cc ${dir}/texture_shrink_test.cc ${dir}/fit_time_windows_test.cc ${dir}/refill_test.cc)
   atex_add_test(NAME cpu_probes_test LABELS fit SOURCES ${dir}/cpu_probes_test.cc LIBS atex)
   atex_add_test(NAME incremental_probes_test LABELS fit SOURCES ${dir}/incremental_probes_test.cc
                 ${dir}/incremental_full_test.cc LIBS atex)

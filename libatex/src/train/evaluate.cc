@@ -1,6 +1,7 @@
 // Test-view evaluation: whole-image metrics and the dynamic-region PSNR.
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <map>
 
 #include "atex/train/trainer.h"
@@ -60,31 +61,33 @@ StatusOr<EvalResult> Evaluate(const Dataset& dataset, Backend& backend, const st
   if (options.dynamic_region) {
     ATEX_ASSIGN_OR_RETURN(regions, CameraRegions(dataset, views, options.dynamic_threshold));
   }
-  // Renders come from the backend one by one; the CPU metrics (SSIM dominates) of a chunk run in parallel.
+  // Renders come from the backend one by one; the CPU metrics (SSIM dominates) of a chunk run in
+  // parallel, on another thread while the next chunk renders.
   constexpr size_t kChunk = 32;
-  for (size_t begin = 0; begin < views.size(); begin += kChunk) {
-    const size_t end = std::min(views.size(), begin + kChunk);
-    std::vector<Image> rendered(end - begin);
-    std::vector<std::shared_ptr<const Image>> targets(end - begin);
-    for (size_t i = begin; i < end; ++i) {
-      ATEX_ASSIGN_OR_RETURN(rendered[i - begin], backend.Render(views[i].camera, request));
-      ATEX_ASSIGN_OR_RETURN(targets[i - begin], dataset.LoadImage(views[i]));
-    }
-    std::vector<Status> errors(end - begin);
+  struct Chunk {
+    size_t begin = 0;
+    std::vector<Image> rendered;
+    std::vector<std::shared_ptr<const Image>> targets;
+  };
+  const auto score = [&](Chunk chunk) -> Status {
+    const size_t count = chunk.rendered.size();
+    std::vector<Status> errors(count);
 #pragma omp parallel for schedule(dynamic, 1)
-    for (long long k = 0; k < static_cast<long long>(end - begin); ++k) {
-      for (float& v : rendered[k].pixels) v = std::clamp(v, 0.0f, 1.0f);
-      StatusOr<ImageMetrics> m = CompareImages(rendered[k], *targets[k]);
+    for (long long k = 0; k < static_cast<long long>(count); ++k) {
+      Image& rendered = chunk.rendered[k];
+      const Image& target = *chunk.targets[k];
+      for (float& v : rendered.pixels) v = std::clamp(v, 0.0f, 1.0f);
+      StatusOr<ImageMetrics> m = CompareImages(rendered, target);
       if (!m.ok()) {
         errors[k] = m.status();
         continue;
       }
-      const View& view = views[begin + k];
-      ViewMetrics& out = result.views[begin + k];
+      const View& view = views[chunk.begin + k];
+      ViewMetrics& out = result.views[chunk.begin + k];
       out = {view.camera_id, view.timestep, *m};
       auto region = regions.find(view.camera_id);
       if (region != regions.end() && region->second.count > 0) {
-        StatusOr<double> psnr = RegionPsnr(rendered[k], *targets[k], region->second);
+        StatusOr<double> psnr = RegionPsnr(rendered, target, region->second);
         if (!psnr.ok()) {
           errors[k] = psnr.status();
           continue;
@@ -94,7 +97,24 @@ StatusOr<EvalResult> Evaluate(const Dataset& dataset, Backend& backend, const st
       }
     }
     for (const Status& e : errors) ATEX_RETURN_IF_ERROR(e);
+    return Status::Ok();
+  };
+  // Declared after `result` and `regions`, which it uses: an early return waits for it first.
+  std::future<Status> scoring;
+  for (size_t begin = 0; begin < views.size(); begin += kChunk) {
+    const size_t end = std::min(views.size(), begin + kChunk);
+    Chunk chunk;
+    chunk.begin = begin;
+    chunk.rendered.resize(end - begin);
+    chunk.targets.resize(end - begin);
+    for (size_t i = begin; i < end; ++i) {
+      ATEX_ASSIGN_OR_RETURN(chunk.rendered[i - begin], backend.Render(views[i].camera, request));
+      ATEX_ASSIGN_OR_RETURN(chunk.targets[i - begin], dataset.LoadImage(views[i]));
+    }
+    if (scoring.valid()) ATEX_RETURN_IF_ERROR(scoring.get());
+    scoring = std::async(std::launch::async, score, std::move(chunk));
   }
+  if (scoring.valid()) ATEX_RETURN_IF_ERROR(scoring.get());
   const double n = static_cast<double>(std::max<size_t>(1, result.views.size()));
   double dynamic_sum = 0;
   for (const auto& v : result.views) {
