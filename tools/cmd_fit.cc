@@ -208,6 +208,17 @@ int RunFit(const FitArgs& a) {
   auto backend = cli::SelectBackend(a.backend);
   if (!backend.ok()) return cli::Fail(cmd, backend.status());
   if (!backend->note.empty()) std::cerr << "atex fit: " << backend->note << "\n";
+  // The input's test evaluation runs beside the plan on a second GPU backend
+  // (FitRunOptions::input_eval_backend); on the CPU both would share the same cores. Without
+  // one it runs before the plan, with the same result.
+  std::optional<cli::SelectedBackend> eval_backend;
+  if (!a.data.empty() && !(o.quality > 0) && backend->backend->name() == "cuda") {
+    auto second = cli::SelectBackend("cuda");
+    if (second.ok()) {
+      eval_backend = std::move(*second);
+      o.input_eval_backend = eval_backend->backend.get();
+    }
+  }
   phase_done("command_backend_start");
   std::unique_ptr<Dataset> dataset;
   if (!a.data.empty()) {

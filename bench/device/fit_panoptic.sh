@@ -41,6 +41,7 @@ else
   # Without time-local fast-object Gaussians: .oldsrc's CLI (72791af) predates their chunk
   # (GTWN) and refuses models that have them (E9), so the A/B needs models without.
   train_short_stage1 "$models" 0 --set stage1.fast_objects.enabled=false
+  train_pids=()
   for textures in uniform adaptive; do  # both at once: the GPU has room, and these are not timed
     [ -f "$models/$textures.atex" ] && continue
     growth=()
@@ -48,8 +49,11 @@ else
     "$atex" train --data "$bb" --stage 2 --init "$models/stage1.atex" --textures "$textures" \
       --set stage2.iterations="$stage2_steps" "${growth[@]}" --out "$models/$textures.atex" --json \
       > "$models/$textures.train.json" 2> "$models/$textures.log" &
+    train_pids+=($!)
   done
-  wait $(jobs -p | grep -vx "${old_pid:-none}") || true
+  # Only the training jobs: a bare `wait` (no job left to name when both models exist from an
+  # earlier call on the same machine) would also reap the old build, whose wait below then fails.
+  [ ${#train_pids[@]} -eq 0 ] || wait "${train_pids[@]}" || true
   for textures in uniform adaptive; do
     [ -f "$models/$textures.atex" ] || { tail -5 "$models/$textures.log"; exit 1; }
   done

@@ -56,6 +56,7 @@ struct WriteOptions {
   // Turn off only to exercise a codec on data it cannot compress.
   bool fallback_to_raw = true;
   bool write_stats = true;  // write GSTA when the asset has statistics
+  friend bool operator==(const WriteOptions&, const WriteOptions&) = default;
 };
 
 struct ReadOptions {

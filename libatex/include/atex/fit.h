@@ -211,6 +211,9 @@ struct MeasureTiming {
 nlohmann::json TimingToJson(const MeasureTiming& timing);
 
 class TextureShrinkMemo;  // the fitter's memo of texture residuals (texture_shrink.h)
+namespace internal {
+struct PlanTail;  // the plan's last states (plan_state.h)
+}
 
 struct Plan {
   MeasureTiming timing;
@@ -224,6 +227,10 @@ struct Plan {
   // The texture residuals BuildPlan computed (by texture content), for ApplyPlan's replays of
   // the same moves; null: ApplyPlan computes its own. Thread-safe; never changes a result.
   std::shared_ptr<TextureShrinkMemo> texture_memo;
+  // The states after the plan's last moves, kept by BuildPlan, so that ApplyPlan given the
+  // same asset object and write options starts from them instead of replaying the moves from
+  // the input (other calls replay). Null: none kept. Never changes a result.
+  std::shared_ptr<const internal::PlanTail> tail;
 };
 
 // Fills asset->stats->importance when it is missing (assets converted from other

@@ -37,6 +37,11 @@ struct FitRunOptions {
   LeverSet levers = kDefaultLevers;
   double step_growth = 2.0;       // PlanOptions::step_growth, in [1, 16]
   int parallel_candidates = 0;    // PlanOptions::parallel_candidates (0: automatic), in [0, 64]
+  // A second backend for the input's test evaluation: it then runs on another thread while the
+  // plan is built, instead of before it (with a dataset; not with a quality floor, which needs
+  // the input's score first). Must not be the run's backend. Null: before the plan, on the
+  // run's backend.
+  train::Backend* input_eval_backend = nullptr;
   std::function<void(const FitProgress&)> progress;  // each move taken
   // Fine-tune progress (return false to stop training early).
   std::function<bool(const train::TrainProgress&)> finetune_progress;

@@ -68,6 +68,7 @@ StatusOr<Fitted> SmallestFallback(const Asset& asset, const Plan& plan, const Wr
 
 using internal::FinishOutput;
 using internal::InitialState;
+using internal::PlanTail;
 using internal::SmallestFallback;
 using internal::State;
 using internal::Stopwatch;
@@ -75,36 +76,59 @@ using internal::RefillSlack;
 
 StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes) {
   Stopwatch whole;
-  State state = InitialState(asset, write);
-  // The plan's own texture residuals: its moves were applied to these textures already.
-  if (plan.texture_memo) state.memo = plan.texture_memo;
+  // The plan's last states, when it was built from this very asset and these write options:
+  // then the input's size is the plan's, and the replay starts from a kept state.
+  const PlanTail* tail = plan.tail && plan.tail->Serves(asset, write) ? plan.tail.get() : nullptr;
+  const auto initial_state = [&] {
+    State s = InitialState(asset, write);
+    // The plan's own texture residuals: its moves were applied to these textures already.
+    if (plan.texture_memo) s.memo = plan.texture_memo;
+    return s;
+  };
   Fitted out;
   // The searches below encode many states that differ from each other in a few chunks.
   EncodeCache cache;
   const auto encode = [&cache](const State& s) { return EncodeAsset(s.asset, s.write, &cache); };
-  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, encode(state));
-  if (bytes.size() > budget_bytes) {
+  State state;
+  std::vector<uint8_t> bytes;
+  uint64_t input_bytes = plan.initial_bytes;
+  if (tail == nullptr) {
+    state = initial_state();
+    ATEX_ASSIGN_OR_RETURN(bytes, encode(state));
+    input_bytes = bytes.size();
+  }
+  if (input_bytes <= budget_bytes) {
+    if (tail != nullptr) state = initial_state();
+  } else {
     size_t j = 0;
     while (j < plan.moves.size() && plan.moves[j].bytes_after > budget_bytes) ++j;
     if (j == plan.moves.size()) {
-      const uint64_t reached = plan.moves.empty() ? bytes.size() : plan.moves.back().bytes_after;
+      const uint64_t reached = plan.moves.empty() ? input_bytes : plan.moves.back().bytes_after;
       return SmallestFallback(asset, plan, write, budget_bytes, reached);
     }
     Move last = plan.moves[j];
     // The refill after an indivisible last move starts from the state before its first prefix
-    // move: kept from this replay (one copy) instead of replayed again from the input.
+    // move: kept from the plan or from this replay (one copy), not replayed again from the input.
     const size_t checkpoint_index = last.divisible() ? j : internal::FirstRefillPrefix(plan.moves, j);
     std::optional<State> checkpoint;
-    for (size_t k = 0; k < j; ++k) {
-      if (k == checkpoint_index) checkpoint = state;
-      ATEX_RETURN_IF_ERROR(ApplyMove(plan.moves[k], plan.prune_order, &state.asset, &state.write, &state.kept,
-                                     plan.min_grid_resolution, state.memo.get()));
-      out.moves.push_back(plan.moves[k]);
+    const State* kept = tail != nullptr ? tail->After(j) : nullptr;
+    if (kept != nullptr) {
+      state = *kept;
+      if (const State* c = checkpoint_index < j ? tail->After(checkpoint_index) : nullptr) checkpoint = *c;
+      out.moves.assign(plan.moves.begin(), plan.moves.begin() + static_cast<std::ptrdiff_t>(j));
+    } else {
+      if (tail != nullptr) state = initial_state();
+      for (size_t k = 0; k < j; ++k) {
+        if (k == checkpoint_index) checkpoint = state;
+        ATEX_RETURN_IF_ERROR(ApplyMove(plan.moves[k], plan.prune_order, &state.asset, &state.write, &state.kept,
+                                       plan.min_grid_resolution, state.memo.get()));
+        out.moves.push_back(plan.moves[k]);
+      }
     }
     if (last.divisible() && last.count > 1) {
       // Smallest count that fits: count 0 is the state before the move (above the budget, as
       // every earlier move's size), the full count is known to fit (count_search.h).
-      const uint64_t before = j == 0 ? bytes.size() : plan.moves[j - 1].bytes_after;
+      const uint64_t before = j == 0 ? input_bytes : plan.moves[j - 1].bytes_after;
       const auto bytes_at = [&](uint64_t count) -> StatusOr<uint64_t> {
         State trial = state;
         Move m = last;

@@ -1,10 +1,13 @@
 // RunFit (fit_run.h) as the CLI and Python use it: what each output of a run reports.
+#include <memory>
+
 #include <gtest/gtest.h>
 
 #include "atex/container.h"
 #include "atex/fit_run.h"
 #include "container/synthetic_asset.h"
 #include "fit/fit_test_util.h"
+#include "train/trainer_test_util.h"
 
 namespace atex::fit {
 namespace {
@@ -37,6 +40,42 @@ TEST(FitRun, EveryOutputsKeptIndicesAreInputIndices) {
       }
     }
   }
+}
+
+// The input's test evaluation may run beside the plan on a second backend
+// (FitRunOptions::input_eval_backend): the report and the output must be those of a run that
+// evaluates it first, on the run's own backend. The run's backend itself is refused as the second.
+TEST(FitRun, TheInputsEvaluationBesideThePlanGivesTheSameReport) {
+  const Asset asset = testing::SmallAsset(container::SyntheticTextures::kMixed, 5, 200);
+  auto bytes = EncodeAsset(asset, {});
+  ASSERT_TRUE(bytes.ok()) << bytes.status().ToString();
+  const std::unique_ptr<Dataset> dataset = train::MovingBall();
+  FitRunOptions options;
+  options.budgets = {bytes->size() / 3};
+  options.probes = 2;
+  options.probe_size = 24;
+  const auto run_with = [&](train::Backend* input_eval_backend) {
+    auto backend = train::MakeCpuBackend();
+    FitRunOptions o = options;
+    o.input_eval_backend = input_eval_backend;
+    return RunFit(*bytes, dataset.get(), backend.get(), o);
+  };
+  auto first = run_with(nullptr);
+  ASSERT_TRUE(first.ok()) << first.status().ToString();
+  auto second_backend = train::MakeCpuBackend();
+  auto beside = run_with(second_backend.get());
+  ASSERT_TRUE(beside.ok()) << beside.status().ToString();
+  ASSERT_TRUE(first->json["input"].contains("test"));
+  EXPECT_EQ(beside->json["input"]["test"], first->json["input"]["test"]);
+  EXPECT_EQ(beside->json["output"]["test"], first->json["output"]["test"]);
+  EXPECT_EQ(beside->outputs.at(0).fitted.bytes, first->outputs.at(0).fitted.bytes);
+  EXPECT_TRUE(beside->json["input"].contains("test_seconds_beside_plan"));
+  EXPECT_FALSE(first->json["input"].contains("test_seconds_beside_plan"));
+
+  auto backend = train::MakeCpuBackend();
+  FitRunOptions same = options;
+  same.input_eval_backend = backend.get();
+  EXPECT_EQ(RunFit(*bytes, dataset.get(), backend.get(), same).status().code(), StatusCode::kInvalidArgument);
 }
 
 }  // namespace

@@ -23,6 +23,7 @@ using internal::Candidate;
 using internal::InitialState;
 using internal::Measured;
 using internal::Measurer;
+using internal::PlanTail;
 using internal::State;
 using internal::Stopwatch;
 
@@ -340,6 +341,8 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
 
   std::map<MoveKey, Cached> cache;
   StepScale scale;
+  // The states before the last two moves taken (for Plan::tail): kept, not copied.
+  std::optional<State> before_last, before_second_last;
   while (current.bytes > options.floor_bytes) {
     Stopwatch propose_clock;
     const std::vector<Move> proposals = Proposals(state, options, scale);
@@ -411,6 +414,8 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
       ATEX_ASSIGN_OR_RETURN(bool more, options.accept_more(taken.candidate.decoded, move));
       if (!more) break;
     }
+    before_second_last = std::move(before_last);
+    before_last = std::move(state);
     state = std::move(taken.next);
     current = measured;
     plan.moves.push_back(move);
@@ -425,6 +430,19 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
     }
     ReportProgress(options, plan, move, current);
   }
+  auto tail = std::make_shared<PlanTail>();
+  tail->input = &asset;
+  tail->input_gaussians = asset.gaussians.size();
+  tail->write = options.write;
+  const size_t n = plan.moves.size();
+  for (auto* kept : {&before_second_last, &before_last}) {
+    if (!*kept) continue;
+    tail->indices.push_back(n - (kept == &before_last ? 1 : 2));
+    tail->states.push_back(std::move(**kept));
+  }
+  tail->indices.push_back(n);
+  tail->states.push_back(std::move(state));
+  plan.tail = std::move(tail);
   plan.timing.total_seconds = whole.Lap();
   const ProbeRenderer::CacheCounts after = renderer->cache_counts();
   plan.timing.probe_cache = {after.deformed - before.deformed, after.deform_reused - before.deform_reused,

@@ -38,6 +38,29 @@ struct State {
 
 State InitialState(const Asset& asset, const WriteOptions& write);
 
+// BuildPlan's states after its last moves (Plan::tail): `states[i]` is the state after
+// moves[0, indices[i]). Valid for ApplyPlan calls given the very asset object BuildPlan was
+// given, unchanged, and its write options: ApplyPlan checks the address, the Gaussian count
+// and the write options; that the asset was not changed in place between the two calls is
+// the caller's part (RunFit passes the same const object to both).
+struct PlanTail {
+  const Asset* input = nullptr;
+  size_t input_gaussians = 0;
+  WriteOptions write;
+  std::vector<size_t> indices;
+  std::vector<State> states;
+
+  bool Serves(const Asset& asset, const WriteOptions& w) const {
+    return &asset == input && asset.gaussians.size() == input_gaussians && w == write;
+  }
+  // The state after moves[0, index), or null when not kept.
+  const State* After(size_t index) const {
+    for (size_t i = 0; i < indices.size(); ++i)
+      if (indices[i] == index) return &states[i];
+    return nullptr;
+  }
+};
+
 // The smallest asset `levers` reach from `asset` (MinimumBytes encodes it): its encodings and
 // the input index of each Gaussian kept. ApplyPlan falls back to it below the plan's end.
 StatusOr<State> SmallestState(const Asset& asset, const WriteOptions& write, int min_grid_resolution, LeverSet levers);

@@ -87,12 +87,20 @@ StatusOr<std::optional<Refill>> SmallestFittingRefill(const State& prefix, const
 // with moves[k]'s stream back at the encoding it had before moves[k]: no replay, and one
 // stream encoded (the others come from the cache). When a later move sets the same stream,
 // undoing moves[k] changes nothing.
+//
+// A file's size is the sum of its chunks', and moves[k] changed one stream's chunk. While the
+// asset's content is what it was when moves[k] was measured (`same_content`: no move after it
+// and no change of the refill touched anything but encodings), undoing it adds back what it
+// saved, `saved` bytes. A trial predicted over the budget by more than a margin is skipped.
 StatusOr<bool> UndoEncoding(const WriteOptions& write, const std::vector<Move>& moves, size_t k, uint64_t budget,
-                            State* state, std::vector<uint8_t>* bytes, EncodeCache* cache) {
+                            bool same_content, uint64_t saved, State* state, std::vector<uint8_t>* bytes,
+                            EncodeCache* cache) {
   const Move& undone = moves[k];
   for (size_t i = k + 1; i < moves.size(); ++i) {
     if (moves[i].lever == Lever::kEncoding && moves[i].stream == undone.stream) return false;
   }
+  // The margin covers what a chunk's size may not add exactly (none known): 1 % of the budget.
+  if (same_content && bytes->size() + saved > budget + budget / 100) return false;
   ScalarEncoding before = GetEncoding(write, undone.stream);
   for (size_t i = 0; i < k; ++i) {
     if (moves[i].lever == Lever::kEncoding && moves[i].stream == undone.stream) before = moves[i].encoding;
@@ -133,15 +141,22 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
   // the end: the refill only changes moves at or after the index it tries.
   std::optional<State> prefix;
   size_t prefix_index = 0;
+  // No move after the one tried is a content move (every one of them was tried before it,
+  // and one that is no encoding move stays, or was changed: either way the content differs).
+  bool same_content = moves->back().lever == Lever::kEncoding;
   for (size_t k = moves->size() - 1; k-- > 0;) {  // every move before the last, latest first
     if ((*moves)[k].lever == Lever::kEncoding) {
-      ATEX_ASSIGN_OR_RETURN(const bool undone, UndoEncoding(write, *moves, k, budget, state, bytes, cache));
+      const uint64_t before = k == 0 ? plan.initial_bytes : (*moves)[k - 1].bytes_after;
+      const uint64_t saved = before > (*moves)[k].bytes_after ? before - (*moves)[k].bytes_after : 0;
+      ATEX_ASSIGN_OR_RETURN(const bool undone,
+                            UndoEncoding(write, *moves, k, budget, same_content, saved, state, bytes, cache));
       if (undone) {
         moves->erase(moves->begin() + static_cast<std::ptrdiff_t>(k));
         earliest_changed = k;
       }
       continue;
     }
+    same_content = false;
     ATEX_ASSIGN_OR_RETURN(prefix, prefixes.Before(*moves, k));
     prefix_index = k;
     if (!(*moves)[k].divisible()) {

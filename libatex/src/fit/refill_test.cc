@@ -1,8 +1,9 @@
 // The refill after an indivisible last move (refill.cc) takes shortcuts: an encoding move is
 // undone without a replay (encoding moves change only the write options), its prefixes start
 // from ApplyPlan's checkpoint instead of the input, and its last replay starts from the prefix
-// it built last. None may change what a fit gives: every output must be its own moves
-// replayed from the input, with each move's recorded size the size of that replay's prefix.
+// it built last; ApplyPlan itself starts from the plan's kept states. None may change what a
+// fit gives: every output must be its own moves replayed from the input, with each move's
+// recorded size the size of that replay's prefix.
 #include <algorithm>
 #include <random>
 
@@ -72,6 +73,91 @@ TEST(Refill, EveryOutputIsItsMovesReplayedFromTheInput) {
   }
   EXPECT_GT(refilled, 0);
   EXPECT_GT(undone_encodings, 0);  // the shortcut of encoding moves was taken, not only tried
+}
+
+// The refill skips undoing an encoding move that would land far over the budget by arithmetic:
+// while no content move follows it, undoing it adds back exactly what it saved (a file's size
+// is the sum of its chunks', and an encoding move changes one chunk). Checked here on every
+// such move of a few plans, replayed without it from the input.
+TEST(Refill, UndoingALateEncodingMoveAddsBackWhatItSaved) {
+  int checked = 0;
+  for (const uint64_t seed : {3u, 7u, 19u}) {
+    const Asset asset = testing::SmallAsset(container::SyntheticTextures::kMixed, seed);
+    auto backend = train::MakeCpuBackend();
+    ProbeRenderer renderer(backend.get(), OrbitProbes(asset, 4, 40, 30));
+    WriteOptions write;
+    write.write_stats = false;
+    PlanOptions o;
+    o.write = write;
+    o.floor_bytes = 1;
+    o.levers = LeverBit(Lever::kEncoding);
+    auto plan = BuildPlan(asset, &renderer, o);
+    ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+    const std::vector<Move>& moves = plan->moves;
+    size_t first = moves.size();  // the encoding moves after the last content move
+    while (first > 0 && moves[first - 1].lever == Lever::kEncoding) --first;
+    for (size_t k = first; k + 1 < moves.size(); ++k) {
+      bool overridden = false;  // a later move sets the same stream: undoing k changes nothing
+      for (size_t i = k + 1; i < moves.size(); ++i) overridden |= moves[i].stream == moves[k].stream;
+      if (overridden) continue;
+      internal::State s = internal::InitialState(asset, write);
+      auto without = internal::ApplyRange(s, *plan, moves, 0, moves.size(), k, 0);
+      ASSERT_TRUE(without.ok()) << without.status().ToString();
+      auto bytes = EncodeAsset(without->asset, without->write);
+      ASSERT_TRUE(bytes.ok()) << bytes.status().ToString();
+      const uint64_t before = k == 0 ? plan->initial_bytes : moves[k - 1].bytes_after;
+      EXPECT_EQ(bytes->size(), moves.back().bytes_after + (before - moves[k].bytes_after))
+          << "seed " << seed << ", move " << k << ": " << DescribeMove(moves[k]);
+      ++checked;
+    }
+  }
+  EXPECT_GE(checked, 3);
+}
+
+// ApplyPlan starts from the plan's kept states (Plan::tail) when it is given the plan's own
+// asset object and write options; a plan without them, or another asset object, replays the
+// moves from the input. Every budget must give the same file and moves either way.
+TEST(Refill, ThePlansKeptStatesGiveTheSameFits) {
+  const Asset asset = testing::SmallAsset(container::SyntheticTextures::kMixed, 13);
+  auto backend = train::MakeCpuBackend();
+  ProbeRenderer renderer(backend.get(), OrbitProbes(asset, 4, 40, 30));
+  WriteOptions write;
+  write.write_stats = false;
+  auto minimum = MinimumBytes(asset, write);
+  ASSERT_TRUE(minimum.ok()) << minimum.status().ToString();
+  PlanOptions o;
+  o.write = write;
+  o.floor_bytes = *minimum;
+  o.prune_fraction = 0.2;
+  o.texture_fraction = 0.3;
+  auto plan = BuildPlan(asset, &renderer, o);
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  ASSERT_NE(plan->tail, nullptr);
+  ASSERT_GE(plan->moves.size(), 3u);
+  Plan without = *plan;
+  without.tail = nullptr;
+  const Asset copy = asset;  // equal content, another object: not served by the tail
+  const uint64_t lo = plan->moves.back().bytes_after, hi = plan->initial_bytes;
+  std::mt19937_64 rng(5);
+  std::vector<uint64_t> budgets = {plan->moves.back().bytes_after, plan->moves[plan->moves.size() - 2].bytes_after,
+                                   hi, hi + 1};
+  for (int trial = 0; trial < 30; ++trial) budgets.push_back(lo + rng() % (hi - lo + 1));
+  for (const uint64_t budget : budgets) {
+    auto served = ApplyPlan(asset, *plan, write, budget);
+    auto replayed = ApplyPlan(asset, without, write, budget);
+    auto other_object = ApplyPlan(copy, *plan, write, budget);
+    ASSERT_TRUE(served.ok()) << served.status().ToString();
+    ASSERT_TRUE(replayed.ok()) << replayed.status().ToString();
+    ASSERT_TRUE(other_object.ok()) << other_object.status().ToString();
+    EXPECT_EQ(served->bytes, replayed->bytes) << "budget " << budget;
+    EXPECT_EQ(other_object->bytes, replayed->bytes) << "budget " << budget;
+    EXPECT_EQ(served->kept, replayed->kept) << "budget " << budget;
+    ASSERT_EQ(served->moves.size(), replayed->moves.size()) << "budget " << budget;
+    for (size_t i = 0; i < served->moves.size(); ++i) {
+      EXPECT_EQ(served->moves[i].count, replayed->moves[i].count) << "budget " << budget << ", move " << i;
+      EXPECT_EQ(served->moves[i].bytes_after, replayed->moves[i].bytes_after) << "budget " << budget << ", move " << i;
+    }
+  }
 }
 
 }  // namespace
