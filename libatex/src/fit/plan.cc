@@ -341,8 +341,11 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
 
   std::map<MoveKey, Cached> cache;
   StepScale scale;
-  // The states before the last two moves taken (for Plan::tail): kept, not copied.
-  std::optional<State> before_last, before_second_last;
+  // For Plan::tail, kept, not copied: the state before the last move taken, and the states
+  // before the last two moves that changed the content (no encoding moves: ApplyPlan's refill
+  // starts from the latest one before the last move, FirstRefillPrefix).
+  std::shared_ptr<const State> before_last;
+  std::vector<std::pair<size_t, std::shared_ptr<const State>>> before_content;  // (move index, state), at most two
   while (current.bytes > options.floor_bytes) {
     Stopwatch propose_clock;
     const std::vector<Move> proposals = Proposals(state, options, scale);
@@ -414,8 +417,11 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
       ATEX_ASSIGN_OR_RETURN(bool more, options.accept_more(taken.candidate.decoded, move));
       if (!more) break;
     }
-    before_second_last = std::move(before_last);
-    before_last = std::move(state);
+    before_last = std::make_shared<const State>(std::move(state));
+    if (move.lever != Lever::kEncoding) {
+      if (before_content.size() == 2) before_content.erase(before_content.begin());
+      before_content.emplace_back(plan.moves.size(), before_last);
+    }
     state = std::move(taken.next);
     current = measured;
     plan.moves.push_back(move);
@@ -435,13 +441,17 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   tail->input_gaussians = asset.gaussians.size();
   tail->write = options.write;
   const size_t n = plan.moves.size();
-  for (auto* kept : {&before_second_last, &before_last}) {
-    if (!*kept) continue;
-    tail->indices.push_back(n - (kept == &before_last ? 1 : 2));
-    tail->states.push_back(std::move(**kept));
+  for (auto& [index, kept] : before_content) {
+    if (index + 1 == n) continue;  // before_last
+    tail->indices.push_back(index);
+    tail->states.push_back(std::move(kept));
+  }
+  if (before_last) {
+    tail->indices.push_back(n - 1);
+    tail->states.push_back(std::move(before_last));
   }
   tail->indices.push_back(n);
-  tail->states.push_back(std::move(state));
+  tail->states.push_back(std::make_shared<const State>(std::move(state)));
   plan.tail = std::move(tail);
   plan.timing.total_seconds = whole.Lap();
   const ProbeRenderer::CacheCounts after = renderer->cache_counts();

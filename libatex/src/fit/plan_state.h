@@ -38,8 +38,9 @@ struct State {
 
 State InitialState(const Asset& asset, const WriteOptions& write);
 
-// BuildPlan's states after its last moves (Plan::tail): `states[i]` is the state after
-// moves[0, indices[i]). Valid for ApplyPlan calls given the very asset object BuildPlan was
+// BuildPlan's states after some of its last moves (Plan::tail): `states[i]` is the state after
+// moves[0, indices[i]): after all its moves, after all but the last, and before each of its
+// last two content moves (no encoding moves). Valid for ApplyPlan calls given the very asset object BuildPlan was
 // given, unchanged, and its write options: ApplyPlan checks the address, the Gaussian count
 // and the write options; that the asset was not changed in place between the two calls is
 // the caller's part (RunFit passes the same const object to both).
@@ -48,7 +49,7 @@ struct PlanTail {
   size_t input_gaussians = 0;
   WriteOptions write;
   std::vector<size_t> indices;
-  std::vector<State> states;
+  std::vector<std::shared_ptr<const State>> states;
 
   bool Serves(const Asset& asset, const WriteOptions& w) const {
     return &asset == input && asset.gaussians.size() == input_gaussians && w == write;
@@ -56,7 +57,7 @@ struct PlanTail {
   // The state after moves[0, index), or null when not kept.
   const State* After(size_t index) const {
     for (size_t i = 0; i < indices.size(); ++i)
-      if (indices[i] == index) return &states[i];
+      if (indices[i] == index) return states[i].get();
     return nullptr;
   }
 };
