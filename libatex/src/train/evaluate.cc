@@ -5,6 +5,7 @@
 #include <map>
 
 #include "atex/train/trainer.h"
+#include "render/parallel.h"
 
 namespace atex::train {
 
@@ -72,7 +73,8 @@ StatusOr<EvalResult> Evaluate(const Dataset& dataset, Backend& backend, const st
   const auto score = [&](Chunk chunk) -> Status {
     const size_t count = chunk.rendered.size();
     std::vector<Status> errors(count);
-#pragma omp parallel for schedule(dynamic, 1)
+    const int threads = options.metric_threads > 0 ? options.metric_threads : render_internal::MaxThreads();
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
     for (long long k = 0; k < static_cast<long long>(count); ++k) {
       Image& rendered = chunk.rendered[k];
       const Image& target = *chunk.targets[k];

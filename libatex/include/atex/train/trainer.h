@@ -82,6 +82,9 @@ struct EvalOptions {
   // dataset's frames of that camera (both splits), whichever subset `views` is.
   bool dynamic_region = true;
   double dynamic_threshold = kDefaultDynamicThreshold;  // τ of atex/dynamic_region.h
+  // Threads of the CPU metrics (SSIM dominates); 0: OpenMP's default (every core). Fewer when
+  // the evaluation runs beside other CPU work (atex fit evaluates its input beside the plan).
+  int metric_threads = 0;
 };
 
 struct TrainSummary {
