@@ -49,10 +49,13 @@ StatusOr<Candidate> Measurer::Encode(const State& state) {
 StatusOr<double> Measurer::Distortion(const Candidate& candidate, const CandidateMap& map,
                                       std::shared_ptr<const IncrementalProbes::Pending>* pending) {
   Stopwatch clock;
-  StatusOr<std::vector<Image>> renders =
-      incremental_          ? incremental_->Render(candidate.decoded, map, pending)
-      : candidate.render_state ? renderer_->RenderState(*candidate.render_state, train::RenderRequestFor(candidate.decoded))
-                             : renderer_->Render(candidate.decoded);
+  StatusOr<std::vector<Image>> renders = [&]() -> StatusOr<std::vector<Image>> {
+    if (incremental_) return incremental_->Render(candidate.decoded, map, pending);
+    if (candidate.render_state) {
+      return renderer_->RenderState(*candidate.render_state, train::RenderRequestFor(candidate.decoded));
+    }
+    return renderer_->Render(candidate.decoded);
+  }();
   if (!renders.ok()) return renders.status();
   timing_->render_seconds += clock.Lap();
   ATEX_ASSIGN_OR_RETURN(double mse, MeanSquaredError(*renders, reference_));
@@ -105,8 +108,7 @@ StatusOr<Candidate> Measurer::Prepare(const State& next, const Move& move) {
     const double seconds = clock.Lap();
     std::lock_guard<std::mutex> lock(timing_mutex_);
     timing_->render_state_seconds += seconds;
-  }
-  if (incremental_) {
+  } else {
     c.map.base_of = BaseIndices(current_kept_, next.kept);
     c.range_stable = prune_ != PruneMeasure::kExact && move.lever == Lever::kPrune;
     if (!c.range_stable) c.map.changed = ChangedGaussians(current_, c.decoded, c.map.base_of);

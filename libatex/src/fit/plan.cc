@@ -312,6 +312,45 @@ void ReportProgress(const PlanOptions& options, const Plan& plan, const Move& mo
                                       current.distortion > 0 ? -10.0 * std::log10(current.distortion) : 99.0)});
 }
 
+// The states Plan::tail keeps, collected while the plan is built (moved in, not copied): the
+// state before the last move taken, and those before the last two moves that changed the
+// content (no encoding moves: ApplyPlan's refill starts from the latest one before the last
+// move, FirstRefillPrefix).
+class TailKeeper {
+ public:
+  // `before` is the state before `move`, the plan's move number `index`.
+  void Taken(const Move& move, size_t index, State before) {
+    before_last_ = std::make_shared<const State>(std::move(before));
+    if (move.lever != Lever::kEncoding) {
+      if (before_content_.size() == 2) before_content_.erase(before_content_.begin());
+      before_content_.emplace_back(index, before_last_);
+    }
+  }
+  // The tail of a plan of `moves` moves built from `asset` with `write`, whose last state is `last`.
+  std::shared_ptr<const PlanTail> Finish(const Asset& asset, const WriteOptions& write, size_t moves, State last) {
+    auto tail = std::make_shared<PlanTail>();
+    tail->input = &asset;
+    tail->input_gaussians = asset.gaussians.size();
+    tail->write = write;
+    for (auto& [index, kept] : before_content_) {
+      if (index + 1 == moves) continue;  // before_last_
+      tail->indices.push_back(index);
+      tail->states.push_back(std::move(kept));
+    }
+    if (before_last_) {
+      tail->indices.push_back(moves - 1);
+      tail->states.push_back(std::move(before_last_));
+    }
+    tail->indices.push_back(moves);
+    tail->states.push_back(std::make_shared<const State>(std::move(last)));
+    return tail;
+  }
+
+ private:
+  std::shared_ptr<const State> before_last_;
+  std::vector<std::pair<size_t, std::shared_ptr<const State>>> before_content_;  // (move index, state), two at most
+};
+
 }  // namespace
 
 StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const PlanOptions& options) {
@@ -338,14 +377,9 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   // (costs change slowly between moves); a stale best is measured again, and a move is
   // taken only when the best cost is a fresh one (measured at the current state).
   CandidateEvaluator evaluator(options, &plan, &measurer, &state, &current);
-
   std::map<MoveKey, Cached> cache;
   StepScale scale;
-  // For Plan::tail, kept, not copied: the state before the last move taken, and the states
-  // before the last two moves that changed the content (no encoding moves: ApplyPlan's refill
-  // starts from the latest one before the last move, FirstRefillPrefix).
-  std::shared_ptr<const State> before_last;
-  std::vector<std::pair<size_t, std::shared_ptr<const State>>> before_content;  // (move index, state), at most two
+  TailKeeper tail;
   while (current.bytes > options.floor_bytes) {
     Stopwatch propose_clock;
     const std::vector<Move> proposals = Proposals(state, options, scale);
@@ -417,11 +451,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
       ATEX_ASSIGN_OR_RETURN(bool more, options.accept_more(taken.candidate.decoded, move));
       if (!more) break;
     }
-    before_last = std::make_shared<const State>(std::move(state));
-    if (move.lever != Lever::kEncoding) {
-      if (before_content.size() == 2) before_content.erase(before_content.begin());
-      before_content.emplace_back(plan.moves.size(), before_last);
-    }
+    tail.Taken(move, plan.moves.size(), std::move(state));
     state = std::move(taken.next);
     current = measured;
     plan.moves.push_back(move);
@@ -436,23 +466,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
     }
     ReportProgress(options, plan, move, current);
   }
-  auto tail = std::make_shared<PlanTail>();
-  tail->input = &asset;
-  tail->input_gaussians = asset.gaussians.size();
-  tail->write = options.write;
-  const size_t n = plan.moves.size();
-  for (auto& [index, kept] : before_content) {
-    if (index + 1 == n) continue;  // before_last
-    tail->indices.push_back(index);
-    tail->states.push_back(std::move(kept));
-  }
-  if (before_last) {
-    tail->indices.push_back(n - 1);
-    tail->states.push_back(std::move(before_last));
-  }
-  tail->indices.push_back(n);
-  tail->states.push_back(std::make_shared<const State>(std::move(state)));
-  plan.tail = std::move(tail);
+  plan.tail = tail.Finish(asset, options.write, plan.moves.size(), std::move(state));
   plan.timing.total_seconds = whole.Lap();
   const ProbeRenderer::CacheCounts after = renderer->cache_counts();
   plan.timing.probe_cache = {after.deformed - before.deformed, after.deform_reused - before.deform_reused,
