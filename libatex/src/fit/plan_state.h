@@ -40,10 +40,10 @@ State InitialState(const Asset& asset, const WriteOptions& write);
 
 // BuildPlan's states after some of its last moves (Plan::tail): `states[i]` is the state after
 // moves[0, indices[i]): after all its moves, after all but the last, and before each of its
-// last two content moves (no encoding moves). Valid for ApplyPlan calls given the very asset object BuildPlan was
-// given, unchanged, and its write options: ApplyPlan checks the address, the Gaussian count
-// and the write options; that the asset was not changed in place between the two calls is
-// the caller's part (RunFit passes the same const object to both).
+// last two content moves (no encoding moves). Valid for ApplyPlan calls given the very asset
+// object BuildPlan was given, unchanged, and its write options: ApplyPlan checks the address,
+// the Gaussian count and the write options; that the asset was not changed in place between
+// the two calls is the caller's part (RunFit passes the same const object to both).
 struct PlanTail {
   const Asset* input = nullptr;
   size_t input_gaussians = 0;
