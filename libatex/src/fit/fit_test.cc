@@ -21,36 +21,9 @@
 namespace atex::fit {
 namespace {
 
+using testing::MakePlan;
+using testing::PlanFixture;
 using testing::SmallAsset;
-
-struct PlanFixture {
-  Asset asset;
-  std::unique_ptr<train::Backend> backend;
-  std::unique_ptr<ProbeRenderer> renderer;
-  Plan plan;
-  WriteOptions write;
-  uint64_t minimum = 0;
-};
-
-PlanFixture MakePlan(container::SyntheticTextures textures, uint64_t seed) {
-  PlanFixture f;
-  f.asset = SmallAsset(textures, seed);
-  f.backend = train::MakeCpuBackend();
-  f.renderer = std::make_unique<ProbeRenderer>(f.backend.get(), OrbitProbes(f.asset, 4, 40, 30));
-  f.write.write_stats = false;
-  auto minimum = MinimumBytes(f.asset, f.write);
-  EXPECT_TRUE(minimum.ok()) << minimum.status().ToString();
-  f.minimum = *minimum;
-  PlanOptions o;
-  o.write = f.write;
-  o.floor_bytes = f.minimum;
-  o.prune_fraction = 0.2;
-  o.texture_fraction = 0.3;
-  auto plan = BuildPlan(f.asset, f.renderer.get(), o);
-  EXPECT_TRUE(plan.ok()) << plan.status().ToString();
-  f.plan = std::move(*plan);
-  return f;
-}
 
 TEST(Plan, UsesEveryLeverAndShrinksMonotonically) {
   PlanFixture f = MakePlan(container::SyntheticTextures::kMixed, 5);

@@ -21,20 +21,10 @@ namespace {
 TEST(Refill, EveryOutputIsItsMovesReplayedFromTheInput) {
   int refilled = 0, undone_encodings = 0;
   for (const uint64_t seed : {7u, 19u}) {
-    const Asset asset = testing::SmallAsset(container::SyntheticTextures::kMixed, seed);
-    auto backend = train::MakeCpuBackend();
-    ProbeRenderer renderer(backend.get(), OrbitProbes(asset, 4, 40, 30));
-    WriteOptions write;
-    write.write_stats = false;
-    auto minimum = MinimumBytes(asset, write);
-    ASSERT_TRUE(minimum.ok()) << minimum.status().ToString();
-    PlanOptions o;
-    o.write = write;
-    o.floor_bytes = *minimum;
-    o.prune_fraction = 0.2;
-    o.texture_fraction = 0.3;
-    auto plan = BuildPlan(asset, &renderer, o);
-    ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+    const testing::PlanFixture f = testing::MakePlan(container::SyntheticTextures::kMixed, seed);
+    const Asset& asset = f.asset;
+    const WriteOptions& write = f.write;
+    const Plan* plan = &f.plan;
     const uint64_t lo = plan->moves.back().bytes_after, hi = plan->initial_bytes;
     std::mt19937_64 rng(seed);
     for (int trial = 0; trial < 30; ++trial) {
@@ -82,17 +72,13 @@ TEST(Refill, EveryOutputIsItsMovesReplayedFromTheInput) {
 TEST(Refill, UndoingALateEncodingMoveAddsBackWhatItSaved) {
   int checked = 0;
   for (const uint64_t seed : {3u, 7u, 19u}) {
-    const Asset asset = testing::SmallAsset(container::SyntheticTextures::kMixed, seed);
-    auto backend = train::MakeCpuBackend();
-    ProbeRenderer renderer(backend.get(), OrbitProbes(asset, 4, 40, 30));
-    WriteOptions write;
-    write.write_stats = false;
-    PlanOptions o;
-    o.write = write;
-    o.floor_bytes = 1;
-    o.levers = LeverBit(Lever::kEncoding);
-    auto plan = BuildPlan(asset, &renderer, o);
-    ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+    const testing::PlanFixture f = testing::MakePlan(container::SyntheticTextures::kMixed, seed, [](PlanOptions* o) {
+      o->floor_bytes = 1;
+      o->levers = LeverBit(Lever::kEncoding);
+    });
+    const Asset& asset = f.asset;
+    const WriteOptions& write = f.write;
+    const Plan* plan = &f.plan;
     const std::vector<Move>& moves = plan->moves;
     size_t first = moves.size();  // the encoding moves after the last content move
     while (first > 0 && moves[first - 1].lever == Lever::kEncoding) --first;
@@ -118,21 +104,12 @@ TEST(Refill, UndoingALateEncodingMoveAddsBackWhatItSaved) {
 // asset object and write options; a plan without them, or another asset object, replays the
 // moves from the input. Every budget must give the same file and moves either way.
 TEST(Refill, ThePlansKeptStatesGiveTheSameFits) {
-  const Asset asset = testing::SmallAsset(container::SyntheticTextures::kMixed, 13);
-  auto backend = train::MakeCpuBackend();
-  ProbeRenderer renderer(backend.get(), OrbitProbes(asset, 4, 40, 30));
-  WriteOptions write;
-  write.write_stats = false;
-  auto minimum = MinimumBytes(asset, write);
-  ASSERT_TRUE(minimum.ok()) << minimum.status().ToString();
-  PlanOptions o;
-  o.write = write;
-  o.floor_bytes = *minimum;
-  o.prune_fraction = 0.2;
-  o.texture_fraction = 0.3;
-  auto plan = BuildPlan(asset, &renderer, o);
-  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  const testing::PlanFixture f = testing::MakePlan(container::SyntheticTextures::kMixed, 13);
+  const Asset& asset = f.asset;
+  const WriteOptions& write = f.write;
+  const Plan* plan = &f.plan;
   ASSERT_NE(plan->tail, nullptr);
+  ASSERT_TRUE(plan->tail->Serves(asset, write)) << "the fixture's asset moved since its plan was built";
   ASSERT_GE(plan->moves.size(), 3u);
   Plan without = *plan;
   without.tail = nullptr;
