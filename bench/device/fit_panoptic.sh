@@ -13,7 +13,8 @@
 # at the same time on the GPU, growth at 10 % and 20 % of them), while .oldsrc builds on the CPU.
 # FITP_CONFIGS picks the fitters (default "old new-fixed-steps new"; new-pN: the current tree with
 # --parallel-candidates N), FITP_MODELS the models and
-# their order (default "uniform adaptive"). Results:
+# their order (default "uniform adaptive"). Each row has the fit's wall seconds and its process's
+# user and system CPU seconds. Results:
 # OUT_DIR/fit_panoptic.jsonl (one row per fit), a table on stdout, and OUT_DIR/fitp.tgz (rows,
 # reports, logs: one file, as a device call returns only a few).
 source "$(dirname "$0")/common.sh"
@@ -88,9 +89,11 @@ for model in "${fit_models[@]}"; do
     name=$out/${model}_$label
     rm -f "$name.atex"
     start=$(date +%s.%N)
+    # The process's CPU seconds (user, system) beside its wall time.
+    TIMEFORMAT='%U %S'
     # shellcheck disable=SC2086  # $extra is a list of words
-    "$bin/bin/atex" fit "$input" "$name.atex" --budget "$budget" --data "$bb" --json $extra \
-      > "$name.fit.json" 2> "$name.fit.log"
+    { time "$bin/bin/atex" fit "$input" "$name.atex" --budget "$budget" --data "$bb" --json $extra \
+      > "$name.fit.json" 2> "$name.fit.log"; } 2> "$name.cpu.txt"
     end=$(date +%s.%N)
     "$BUILD/bin/atex" eval "$name.atex" --data "$bb" --json > "$name.eval.json"
     verified=true
@@ -98,13 +101,15 @@ for model in "${fit_models[@]}"; do
     python3 - "$name" "$model" "$label" "$budget" "$start" "$end" "$verified" >> "$rows" <<'PY'
 import hashlib, json, os, sys
 name, model, label, budget, start, end, verified = sys.argv[1:]
+user_s, sys_s = (float(x) for x in open(name + ".cpu.txt").read().split()[-2:])
 fit = json.load(open(name + ".fit.json"))
 ev = json.load(open(name + ".eval.json"))
 size = os.path.getsize(name + ".atex")
 timing = fit.get("plan_timing", [{}])[0]
 print(json.dumps({"model": model, "build": label, "budget_bytes": int(budget), "bytes": size,
                   "within_budget": size <= int(budget), "verify": verified == "true",
-                  "wall_s": round(float(end) - float(start), 2), "fit_s": fit.get("seconds", {}).get("fit"),
+                  "wall_s": round(float(end) - float(start), 2), "user_s": user_s, "sys_s": sys_s,
+                  "fit_s": fit.get("seconds", {}).get("fit"),
                   "measurements": timing.get("measurements"), "plan_seconds": timing.get("seconds"),
                   "apply_plan_seconds": timing.get("apply_plan_seconds"),
                   "refill_seconds": timing.get("refill_seconds"), "moves": len(fit.get("moves", [])),

@@ -43,6 +43,42 @@ uint64_t StreamHeaderBytes(ScalarEncoding encoding, uint32_t components) {
   return kStreamHeaderSize + (IsQuantised(encoding) ? uint64_t{8} * components : 0);
 }
 
+namespace {
+
+// q = clamp(floor((v - lo) / (hi - lo) · lmax + 0.5), 0, lmax) in binary64, for values [rows][C]
+// (C = lo.size()), stored little-endian as T at `out`; q = 0 where hi = lo. Row by row with the
+// per-component terms computed once: the same operations in the same order as per value, so the
+// same bits, without a division of the index by C per value.
+template <typename T>
+void QuantiseRows(const float* values, uint64_t rows, const std::vector<float>& lo, const std::vector<float>& hi,
+                  uint32_t lmax, uint8_t* out) {
+  const size_t components = lo.size();
+  std::vector<double> low(components), range(components);  // [C]
+  for (size_t c = 0; c < components; ++c) {
+    low[c] = static_cast<double>(lo[c]);
+    range[c] = static_cast<double>(hi[c]) - static_cast<double>(lo[c]);
+  }
+  const double top = static_cast<double>(lmax);
+  for (uint64_t r = 0; r < rows; ++r) {
+    const float* row = values + r * components;
+    uint8_t* row_out = out + r * components * sizeof(T);
+    for (size_t c = 0; c < components; ++c) {
+      T q = 0;
+      if (range[c] > 0) {
+        const double t = std::floor((static_cast<double>(row[c]) - low[c]) / range[c] * top + 0.5);
+        q = static_cast<T>(std::clamp(t, 0.0, top));
+      }
+      if constexpr (sizeof(T) == 1) {
+        row_out[c] = q;
+      } else {
+        StoreLE<T>(row_out + c * sizeof(T), q);
+      }
+    }
+  }
+}
+
+}  // namespace
+
 StatusOr<std::vector<uint8_t>> EncodeStream(const float* values, uint64_t rows, uint32_t components,
                                             ScalarEncoding encoding, const char* what) {
   if (components == 0 || components > 0xFFFF) {
@@ -95,36 +131,31 @@ StatusOr<std::vector<uint8_t>> EncodeStream(const float* values, uint64_t rows, 
     }
     case ScalarEncoding::kQuant16:
     case ScalarEncoding::kQuant8: {
+      // Row by row (one pass over the values, in order: each component sees its values in the
+      // same order as a pass per component would, so ties of -0 and +0 resolve the same way).
       std::vector<float> lo(components, 0.0f), hi(components, 0.0f);  // [C]
-      for (uint32_t c = 0; c < components && rows > 0; ++c) {
-        lo[c] = hi[c] = values[c];
-        for (uint64_t r = 1; r < rows; ++r) {
-          lo[c] = std::min(lo[c], values[r * components + c]);
-          hi[c] = std::max(hi[c], values[r * components + c]);
+      if (rows > 0) {
+        std::copy_n(values, components, lo.begin());
+        std::copy_n(values, components, hi.begin());
+      }
+      for (uint64_t r = 1; r < rows; ++r) {
+        const float* row = values + r * components;
+        for (uint32_t c = 0; c < components; ++c) {
+          lo[c] = std::min(lo[c], row[c]);
+          hi[c] = std::max(hi[c], row[c]);
         }
       }
       for (uint32_t c = 0; c < components; ++c) {
         w.Put<float>(lo[c]);
         w.Put<float>(hi[c]);
       }
-      const uint32_t lmax = QuantMax(encoding);
       const size_t b = EncodingBytes(encoding);
       out.resize(static_cast<size_t>(header + count * b));
       uint8_t* p = out.data() + header;
-      for (uint64_t i = 0; i < count; ++i) {
-        const uint32_t c = static_cast<uint32_t>(i % components);
-        const double range = static_cast<double>(hi[c]) - static_cast<double>(lo[c]);
-        uint32_t q = 0;
-        if (range > 0) {
-          const double t =
-              std::floor((static_cast<double>(values[i]) - static_cast<double>(lo[c])) / range * lmax + 0.5);
-          q = static_cast<uint32_t>(std::clamp(t, 0.0, static_cast<double>(lmax)));
-        }
-        if (b == 2) {
-          StoreLE<uint16_t>(p + i * 2, static_cast<uint16_t>(q));
-        } else {
-          p[i] = static_cast<uint8_t>(q);
-        }
+      if (b == 2) {
+        QuantiseRows<uint16_t>(values, rows, lo, hi, QuantMax(encoding), p);
+      } else {
+        QuantiseRows<uint8_t>(values, rows, lo, hi, QuantMax(encoding), p);
       }
       break;
     }

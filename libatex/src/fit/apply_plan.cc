@@ -12,18 +12,24 @@ namespace internal {
 
 // The state after moves[begin, end) applied to `start`; moves[k] (if in range) with its count
 // replaced by `count_k` (0: skipped).
-StatusOr<State> ApplyRange(State start, const Plan& plan, const std::vector<Move>& moves, size_t begin, size_t end,
-                           size_t k, uint64_t count_k) {
+StatusOr<State> ApplyRange(const State& start, const Plan& plan, const std::vector<Move>& moves, size_t begin,
+                           size_t end, size_t k, uint64_t count_k) {
+  std::optional<State> state;  // empty until the first move applied
   for (size_t i = begin; i < end; ++i) {
     Move m = moves[i];
     if (i == k) {
       if (count_k == 0) continue;
       m.count = count_k;
     }
-    ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &start.asset, &start.write, &start.kept,
-                                   plan.min_grid_resolution, start.memo.get()));
+    if (!state) {
+      ATEX_ASSIGN_OR_RETURN(state, AppliedTo(start, m, plan.prune_order, plan.min_grid_resolution));
+      continue;
+    }
+    ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &state->asset, &state->write, &state->kept,
+                                   plan.min_grid_resolution, state->memo.get()));
   }
-  return start;
+  if (!state) return start;
+  return std::move(*state);
 }
 
 State InitialState(const Asset& asset, const WriteOptions& write) {
@@ -130,11 +136,9 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
       // every earlier move's size), the full count is known to fit (count_search.h).
       const uint64_t before = j == 0 ? input_bytes : plan.moves[j - 1].bytes_after;
       const auto bytes_at = [&](uint64_t count) -> StatusOr<uint64_t> {
-        State trial = state;
         Move m = last;
         m.count = count;
-        ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &trial.asset, &trial.write, &trial.kept,
-                                       plan.min_grid_resolution, trial.memo.get()));
+        ATEX_ASSIGN_OR_RETURN(State trial, AppliedTo(state, m, plan.prune_order, plan.min_grid_resolution));
         ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, encode(trial));
         return static_cast<uint64_t>(trial_bytes.size());
       };

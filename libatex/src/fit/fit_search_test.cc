@@ -10,6 +10,7 @@
 #include "atex/train/backend.h"
 #include "fit/count_search.h"
 #include "fit/fit_test_util.h"
+#include "train/forwarding_backend.h"
 
 namespace atex::fit {
 namespace {
@@ -105,10 +106,15 @@ struct Planned {
   uint64_t minimum = 0;
 };
 
-Planned PlanWith(int parallel, double growth, LeverSet levers = kDefaultLevers) {
+// `gpu_path`: the probes rendered as on a GPU backend (whole render states, preparations beside
+// the renders), by the CPU backend behind a ForwardingBackend, which the renderer does not take
+// for the CPU.
+Planned PlanWith(int parallel, double growth, LeverSet levers = kDefaultLevers, bool gpu_path = false) {
   const Asset asset = SmallAsset(container::SyntheticTextures::kMixed, 5);
-  auto backend = train::MakeCpuBackend();
+  std::unique_ptr<train::Backend> backend =
+      gpu_path ? std::make_unique<train::ForwardingBackend>() : train::MakeCpuBackend();
   ProbeRenderer renderer(backend.get(), OrbitProbes(asset, 4, 40, 30));
+  EXPECT_EQ(renderer.cpu_renderer() == nullptr, gpu_path);
   PlanOptions o;
   o.write.write_stats = false;
   auto minimum = MinimumBytes(asset, o.write, 4, levers);
@@ -136,6 +142,25 @@ TEST(Plan, TheSamePlanWhateverTheCandidatesPreparedAtOnce) {
   EXPECT_EQ(serial.plan.timing.measurements, parallel.plan.timing.measurements);
   EXPECT_EQ(serial.plan.timing.overlap_seconds, 0.0);
   // The parallel plan prepared stale proposals ahead of their refresh and used some of them.
+  EXPECT_EQ(serial.plan.timing.prepared_ahead, 0);
+  EXPECT_GT(parallel.plan.timing.prepared_ahead, parallel.plan.timing.prepared_unused);
+}
+
+// On a GPU backend a candidate is scored while the next ones are prepared, and speculative
+// preparations left unused are cancelled or finish in the background: the plan is still the
+// serial one, move for move.
+TEST(Plan, ScoringBesidePreparationsGivesTheSamePlan) {
+  const Planned serial = PlanWith(1, 2.0, kDefaultLevers, true), parallel = PlanWith(4, 2.0, kDefaultLevers, true);
+  ASSERT_GE(serial.plan.moves.size(), 3u);
+  ASSERT_EQ(serial.plan.moves.size(), parallel.plan.moves.size());
+  for (size_t i = 0; i < serial.plan.moves.size(); ++i) {
+    const Move &a = serial.plan.moves[i], &b = parallel.plan.moves[i];
+    EXPECT_EQ(DescribeMove(a), DescribeMove(b)) << i;
+    EXPECT_EQ(a.bytes_after, b.bytes_after) << i;
+    EXPECT_EQ(a.distortion_after, b.distortion_after) << i;
+  }
+  EXPECT_EQ(serial.plan.timing.measurements, parallel.plan.timing.measurements);
+  EXPECT_GT(serial.plan.timing.render_state_seconds, 0.0);  // the GPU path's render states
   EXPECT_EQ(serial.plan.timing.prepared_ahead, 0);
   EXPECT_GT(parallel.plan.timing.prepared_ahead, parallel.plan.timing.prepared_unused);
 }

@@ -2,22 +2,42 @@
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
+#include <functional>
 
 #include "atex/deform.h"
 
 namespace atex::fit {
 namespace {
 
+// The rows `kept` (ascending indices) of `values`, a [rows][width] array.
 template <typename T>
-std::vector<T> SubsetRows(const std::vector<T>& values, size_t rows, const std::vector<uint8_t>& keep) {
+std::vector<T> SubsetRows(const std::vector<T>& values, size_t rows, const std::vector<size_t>& kept) {
   if (rows == 0 || values.empty()) return {};
   const size_t width = values.size() / rows;
-  std::vector<T> out;
-  out.reserve(values.size());
-  for (size_t i = 0; i < rows; ++i) {
-    if (keep[i]) out.insert(out.end(), values.begin() + i * width, values.begin() + (i + 1) * width);
-  }
+  std::vector<T> out(kept.size() * width);
+  for (size_t j = 0; j < kept.size(); ++j) std::copy_n(values.data() + kept[j] * width, width, out.data() + j * width);
   return out;
+}
+
+// Runs every job, on several threads for a large asset (they write disjoint arrays). An
+// exception (out of memory) leaves the parallel region caught and is thrown again here.
+void RunAll(const std::vector<std::function<void()>>& jobs, size_t rows) {
+  const bool parallel = rows >= (size_t{1} << 15);
+  (void)parallel;  // unused without OpenMP
+  std::vector<std::exception_ptr> errors(jobs.size());
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 1) if (parallel)
+#endif
+  for (size_t i = 0; i < jobs.size(); ++i) {
+    try {
+      jobs[i]();
+    } catch (...) {
+      errors[i] = std::current_exception();
+    }
+  }
+  for (const std::exception_ptr& e : errors)
+    if (e) std::rethrow_exception(e);
 }
 
 // Bilinear, align-corners sample of a [rows][cols] plane at fractional (y, x) in index units.
@@ -38,42 +58,58 @@ int Coarser(int resolution, int min_resolution) {
 
 Asset SubsetGaussians(const Asset& asset, const std::vector<uint8_t>& keep) {
   const size_t n = asset.gaussians.size();
+  std::vector<size_t> kept;  // ascending indices of the Gaussians kept
+  kept.reserve(n);
+  for (size_t i = 0; i < n; ++i)
+    if (keep[i]) kept.push_back(i);
   Asset out;
   out.metadata = asset.metadata;
-  out.deformation = asset.deformation;
   const Gaussians& g = asset.gaussians;
-  out.gaussians.sh_degree = g.sh_degree;
-  out.gaussians.positions = SubsetRows(g.positions, n, keep);
-  out.gaussians.rotations = SubsetRows(g.rotations, n, keep);
-  out.gaussians.log_scales = SubsetRows(g.log_scales, n, keep);
-  out.gaussians.opacity_logits = SubsetRows(g.opacity_logits, n, keep);
-  out.gaussians.sh = SubsetRows(g.sh, n, keep);
-  if (g.has_time_windows()) out.gaussians.time_windows = SubsetRows(g.time_windows, n, keep);
+  Gaussians& o = out.gaussians;
+  o.sh_degree = g.sh_degree;
+  // Each array is gathered on its own (on several threads for a large asset); the texels
+  // follow the texture layout, built first.
+  std::vector<std::function<void()>> jobs = {
+      [&] { out.deformation = asset.deformation; },
+      [&] { o.positions = SubsetRows(g.positions, n, kept); },
+      [&] { o.rotations = SubsetRows(g.rotations, n, kept); },
+      [&] { o.log_scales = SubsetRows(g.log_scales, n, kept); },
+      [&] { o.opacity_logits = SubsetRows(g.opacity_logits, n, kept); },
+      [&] { o.sh = SubsetRows(g.sh, n, kept); },
+      [&] { o.time_windows = g.has_time_windows() ? SubsetRows(g.time_windows, n, kept) : std::vector<float>{}; },
+  };
   if (asset.textures) {
     const TexturePool& t = *asset.textures;
-    TexturePool p;
-    p.heights = SubsetRows(t.heights, n, keep);
-    p.widths = SubsetRows(t.widths, n, keep);
-    p.axis_u = SubsetRows(t.axis_u, n, keep);
-    p.axis_v = SubsetRows(t.axis_v, n, keep);
+    TexturePool& p = out.textures.emplace();
+    p.heights = SubsetRows(t.heights, n, kept);
+    p.widths = SubsetRows(t.widths, n, kept);
+    p.axis_u = SubsetRows(t.axis_u, n, kept);
+    p.axis_v = SubsetRows(t.axis_v, n, kept);
     p.RebuildOffsets();
-    p.texels.reserve(p.texel_count() * kTexelChannels);
-    for (size_t i = 0; i < n; ++i) {
-      if (!keep[i]) continue;
-      p.texels.insert(p.texels.end(), t.texels.begin() + static_cast<std::ptrdiff_t>(t.offsets[i] * kTexelChannels),
-                      t.texels.begin() + static_cast<std::ptrdiff_t>(t.offsets[i + 1] * kTexelChannels));
-    }
-    out.textures = std::move(p);
+    p.texels.resize(p.texel_count() * kTexelChannels);
+    jobs.push_back([&] {
+      for (size_t j = 0; j < kept.size(); ++j) {
+        const size_t i = kept[j];
+        std::copy(t.texels.begin() + static_cast<std::ptrdiff_t>(t.offsets[i] * kTexelChannels),
+                  t.texels.begin() + static_cast<std::ptrdiff_t>(t.offsets[i + 1] * kTexelChannels),
+                  p.texels.begin() + static_cast<std::ptrdiff_t>(p.offsets[j] * kTexelChannels));
+      }
+    });
   }
   if (asset.stats) {
     const GaussianStats& s = *asset.stats;
-    GaussianStats o;
-    o.texture_demand = s.texture_demand.size() == n ? SubsetRows(s.texture_demand, n, keep) : std::vector<float>{};
-    o.peak_scale_u = s.peak_scale_u.size() == n ? SubsetRows(s.peak_scale_u, n, keep) : std::vector<float>{};
-    o.peak_scale_v = s.peak_scale_v.size() == n ? SubsetRows(s.peak_scale_v, n, keep) : std::vector<float>{};
-    o.importance = s.importance.size() == n ? SubsetRows(s.importance, n, keep) : std::vector<float>{};
-    out.stats = std::move(o);
+    GaussianStats& so = out.stats.emplace();
+    const auto subset = [&](const std::vector<float>& v) {
+      return v.size() == n ? SubsetRows(v, n, kept) : std::vector<float>{};
+    };
+    jobs.push_back([&, subset] {  // `subset` by value: it ends with this block, before the jobs run
+      so.texture_demand = subset(s.texture_demand);
+      so.peak_scale_u = subset(s.peak_scale_u);
+      so.peak_scale_v = subset(s.peak_scale_v);
+      so.importance = subset(s.importance);
+    });
   }
+  RunAll(jobs, n);
   return out;
 }
 

@@ -8,8 +8,9 @@
 
 namespace atex::fit::internal {
 
-Measurer::Measurer(ProbeRenderer* renderer, EncodeCache* chunks, MeasureTiming* timing, PruneMeasure prune)
-    : renderer_(renderer), chunks_(chunks), timing_(timing), prune_(prune) {
+Measurer::Measurer(ProbeRenderer* renderer, EncodeCache* chunks, MeasureTiming* timing, PruneMeasure prune,
+                   bool keep_decoded)
+    : renderer_(renderer), chunks_(chunks), timing_(timing), prune_(prune), keep_decoded_(keep_decoded) {
   cpu_ = renderer->cpu_renderer();
   if (cpu_ != nullptr) {
     std::vector<Camera> cameras;
@@ -20,7 +21,7 @@ Measurer::Measurer(ProbeRenderer* renderer, EncodeCache* chunks, MeasureTiming* 
 
 Measurer::~Measurer() = default;
 
-StatusOr<Candidate> Measurer::Encode(const State& state) {
+StatusOr<Candidate> Measurer::Encode(StateRef state) {
   Stopwatch clock;
   auto bytes = EncodeAsset(state.asset, state.write, chunks_);
   const double encode_seconds = clock.Lap();
@@ -51,9 +52,7 @@ StatusOr<double> Measurer::Distortion(const Candidate& candidate, const Candidat
   Stopwatch clock;
   StatusOr<std::vector<Image>> renders = [&]() -> StatusOr<std::vector<Image>> {
     if (incremental_) return incremental_->Render(candidate.decoded, map, pending);
-    if (candidate.render_state) {
-      return renderer_->RenderState(*candidate.render_state, train::RenderRequestFor(candidate.decoded));
-    }
+    if (candidate.render_state) return renderer_->RenderState(*candidate.render_state, candidate.request);
     return renderer_->Render(candidate.decoded);
   }();
   if (!renders.ok()) return renders.status();
@@ -100,11 +99,24 @@ StatusOr<Measured> Measurer::Start(const Asset& input, const State& initial) {
   return Take(initial, c);
 }
 
-StatusOr<Candidate> Measurer::Prepare(const State& next, const Move& move) {
+StatusOr<Candidate> Measurer::Prepare(StateRef next, const Move& move) {
   ATEX_ASSIGN_OR_RETURN(Candidate c, Encode(next));
   if (!incremental_) {
     Stopwatch clock;
-    c.render_state = std::make_shared<const train::ModelState>(train::RenderStateFromAsset(c.decoded));
+    c.request = train::RenderRequestFor(c.decoded);
+    if (keep_decoded_) {
+      c.render_state = std::make_shared<const train::ModelState>(train::RenderStateFromAsset(c.decoded));
+    } else {
+      // Nothing reads the decode after the render: its arrays become the render state.
+      auto state = std::make_shared<train::ModelState>();
+      state->gaussians = std::move(c.decoded.gaussians);
+      state->textures = std::move(c.decoded.textures);
+      state->deformation = std::move(c.decoded.deformation);
+      c.decoded.gaussians = Gaussians();
+      c.decoded.textures.reset();
+      c.decoded.deformation.reset();
+      c.render_state = std::move(state);
+    }
     const double seconds = clock.Lap();
     std::lock_guard<std::mutex> lock(timing_mutex_);
     timing_->render_state_seconds += seconds;
@@ -122,13 +134,13 @@ Status Measurer::Score(Candidate* c) {
   return Status::Ok();
 }
 
-StatusOr<Candidate> Measurer::Measure(const State& next, const Move& move) {
+StatusOr<Candidate> Measurer::Measure(StateRef next, const Move& move) {
   ATEX_ASSIGN_OR_RETURN(Candidate c, Prepare(next, move));
   ATEX_RETURN_IF_ERROR(Score(&c));
   return c;
 }
 
-StatusOr<Measured> Measurer::Take(const State& next, const Candidate& candidate) {
+StatusOr<Measured> Measurer::Take(StateRef next, const Candidate& candidate) {
   Measured measured = candidate.measured;
   if (!incremental_) return measured;
   std::shared_ptr<const IncrementalProbes::Pending> pending = candidate.pending;

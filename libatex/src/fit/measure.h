@@ -36,6 +36,17 @@
 
 namespace atex::fit::internal {
 
+// What a measurement reads of a state: its asset, its encodings and the input index of each
+// Gaussian kept. An encoding candidate is measured on its state's own asset with other write
+// options (no copy of the asset).
+struct StateRef {
+  StateRef(const State& s) : asset(s.asset), write(s.write), kept(s.kept) {}  // NOLINT: implicit on purpose
+  StateRef(const Asset& a, const WriteOptions& w, const std::vector<uint32_t>& k) : asset(a), write(w), kept(k) {}
+  const Asset& asset;
+  const WriteOptions& write;
+  const std::vector<uint32_t>& kept;
+};
+
 struct Measured {
   uint64_t bytes = 0;
   double distortion = 0;
@@ -54,36 +65,48 @@ struct Candidate {
   CandidateMap map;      // against the current state (CPU only)
   bool range_stable = false;
   std::shared_ptr<const IncrementalProbes::Pending> pending;  // CPU only
-  // GPU only: `decoded`'s render state, built by Prepare (beside other preparations) for Score.
+  // GPU only: `decoded`'s render state, built by Prepare (beside other preparations) for Score,
+  // and how to render it. Unless the Measurer keeps decodes, the render state takes `decoded`'s
+  // arrays (moved, not copied) and `decoded` keeps only its metadata.
   std::shared_ptr<const train::ModelState> render_state;
+  train::RenderRequest request;
 };
 
 class Measurer {
  public:
   // `renderer` renders the probes; on the CPU (renderer->cpu_renderer() not null)
-  // incrementally. Timings and counts go to `timing`.
+  // incrementally. Timings and counts go to `timing`. `keep_decoded`: every Candidate keeps its
+  // whole `decoded` asset (PlanOptions::accept_more reads it); otherwise a GPU candidate's
+  // arrays go to its render state.
   Measurer(ProbeRenderer* renderer, EncodeCache* chunks, MeasureTiming* timing,
-           PruneMeasure prune = PruneMeasure::kRangeStable);
+           PruneMeasure prune = PruneMeasure::kRangeStable, bool keep_decoded = true);
   ~Measurer();
+
+  // Whether Prepare may run while Score runs, and whether Take may run while a Prepare started
+  // before it still runs: true on a GPU backend, where Score renders the candidate's own render
+  // state and Take changes nothing Prepare reads. On the CPU, Take changes the current state
+  // that Prepare compares candidates with, and both render on every core.
+  bool PreparesBesideScores() const { return incremental_ == nullptr; }
 
   // Renders the reference (`input` as given) and measures `initial`, which becomes the current state.
   StatusOr<Measured> Start(const Asset& input, const State& initial);
   // Measures `next`, the current state after `move`: Prepare, then Score. Encoding errors
   // come back as they are (kOutOfRange: a stream the encoding cannot hold). The caller
   // counts it in MeasureTiming::measurements (a prepared candidate may go unused).
-  StatusOr<Candidate> Measure(const State& next, const Move& move);
+  StatusOr<Candidate> Measure(StateRef next, const Move& move);
   // The CPU part of a measurement: encode, decode and (on the CPU path) which Gaussians the
   // candidate changes. Several may run at once (BuildPlan prepares a state's proposals in
-  // parallel); none may run during Start, Score or Take, which change the current state.
-  StatusOr<Candidate> Prepare(const State& next, const Move& move);
+  // parallel); none may run during Start, nor during Score or Take unless
+  // PreparesBesideScores().
+  StatusOr<Candidate> Prepare(StateRef next, const Move& move);
   // The distortion of a prepared candidate: the probe renders. One at a time.
   Status Score(Candidate* candidate);
   // The candidate (measured at the current state) becomes the current state; returns its
   // measurement (with kRangeStableConfirmed, a range-stable one is rendered exactly first).
-  StatusOr<Measured> Take(const State& next, const Candidate& candidate);
+  StatusOr<Measured> Take(StateRef next, const Candidate& candidate);
 
  private:
-  StatusOr<Candidate> Encode(const State& state);  // thread-safe (timing_ under timing_mutex_)
+  StatusOr<Candidate> Encode(StateRef state);  // thread-safe (timing_ under timing_mutex_)
   StatusOr<double> Distortion(const Candidate& candidate, const CandidateMap& map,
                               std::shared_ptr<const IncrementalProbes::Pending>* pending);
 
@@ -92,8 +115,9 @@ class Measurer {
   // Most candidates decode to the current state's values but for one or two streams.
   DecodeCache decoded_chunks_;
   MeasureTiming* timing_;
-  std::mutex timing_mutex_;  // Prepare's updates of timing_ (Score's run alone)
+  std::mutex timing_mutex_;  // Prepare's updates of timing_ (Score and Take write other fields)
   PruneMeasure prune_;
+  bool keep_decoded_;
   std::vector<Image> reference_;
   CpuProbeRenderer* cpu_ = nullptr;                 // CPU only
   IncrementalProbes* incremental_ = nullptr;        // CPU only (cpu_'s)

@@ -6,36 +6,50 @@
 
 #include "atex/fit.h"
 #include "levers.h"
+#include "plan_state.h"
 #include "texture_shrink.h"
 
 namespace atex::fit {
+namespace {
+
+// A prune of move.count Gaussians, least important first (`prune_order`, input indices), from an
+// asset of `n` Gaussians whose input indices are `kept`: which of them stay (`keep`, [n]) and
+// their input indices (`still`).
+Status PruneMask(const Move& move, const std::vector<uint32_t>& prune_order, size_t n,
+                 const std::vector<uint32_t>& kept, std::vector<uint8_t>* keep, std::vector<uint32_t>* still) {
+  if (kept.size() != n) return MakeError(StatusCode::kInternal, "fit: kept list out of step with the asset");
+  if (move.count >= n) {
+    return MakeError(StatusCode::kInvalidArgument, "fit: cannot prune ", move.count, " of ", n, " Gaussians");
+  }
+  keep->assign(n, 1);
+  uint64_t removed = 0;
+  for (uint32_t input_index : prune_order) {
+    if (removed == move.count) break;
+    const auto it = std::lower_bound(kept.begin(), kept.end(), input_index);
+    if (it == kept.end() || *it != input_index) continue;  // already gone
+    const size_t current = static_cast<size_t>(it - kept.begin());
+    if ((*keep)[current]) {
+      (*keep)[current] = 0;
+      ++removed;
+    }
+  }
+  still->clear();
+  still->reserve(n - removed);
+  for (size_t i = 0; i < n; ++i)
+    if ((*keep)[i]) still->push_back(kept[i]);
+  return Status::Ok();
+}
+
+}  // namespace
 
 Status ApplyMove(const Move& move, const std::vector<uint32_t>& prune_order, Asset* asset, WriteOptions* write,
                  std::vector<uint32_t>* kept, int min_grid_resolution, TextureShrinkMemo* memo) {
   switch (move.lever) {
     case Lever::kPrune: {
-      const size_t n = asset->gaussians.size();
-      if (kept->size() != n) return MakeError(StatusCode::kInternal, "fit: kept list out of step with the asset");
-      if (move.count >= n) {
-        return MakeError(StatusCode::kInvalidArgument, "fit: cannot prune ", move.count, " of ", n, " Gaussians");
-      }
-      std::vector<uint8_t> keep(n, 1);
-      uint64_t removed = 0;
-      for (uint32_t input_index : prune_order) {
-        if (removed == move.count) break;
-        const auto it = std::lower_bound(kept->begin(), kept->end(), input_index);
-        if (it == kept->end() || *it != input_index) continue;  // already gone
-        const size_t current = static_cast<size_t>(it - kept->begin());
-        if (keep[current]) {
-          keep[current] = 0;
-          ++removed;
-        }
-      }
-      *asset = SubsetGaussians(*asset, keep);
+      std::vector<uint8_t> keep;
       std::vector<uint32_t> still;
-      still.reserve(n - removed);
-      for (size_t i = 0; i < n; ++i)
-        if (keep[i]) still.push_back((*kept)[i]);
+      ATEX_RETURN_IF_ERROR(PruneMask(move, prune_order, asset->gaussians.size(), *kept, &keep, &still));
+      *asset = SubsetGaussians(*asset, keep);
       *kept = std::move(still);
       return Status::Ok();
     }
@@ -80,4 +94,24 @@ StatusOr<Asset> KeepMostImportant(const Asset& asset, const std::vector<uint32_t
   return SubsetGaussians(asset, keep);
 }
 
+namespace internal {
+
+StatusOr<State> AppliedTo(const State& from, const Move& move, const std::vector<uint32_t>& prune_order,
+                          int min_grid_resolution) {
+  if (move.lever == Lever::kPrune) {
+    State next;
+    std::vector<uint8_t> keep;
+    ATEX_RETURN_IF_ERROR(PruneMask(move, prune_order, from.asset.gaussians.size(), from.kept, &keep, &next.kept));
+    next.asset = SubsetGaussians(from.asset, keep);
+    next.write = from.write;
+    next.memo = from.memo;
+    return next;
+  }
+  State next = from;
+  ATEX_RETURN_IF_ERROR(ApplyMove(move, prune_order, &next.asset, &next.write, &next.kept, min_grid_resolution,
+                                 next.memo.get()));
+  return next;
+}
+
+}  // namespace internal
 }  // namespace atex::fit

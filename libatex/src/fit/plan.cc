@@ -2,16 +2,13 @@
 // to a budget is apply_plan.cc.
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <map>
-#include <mutex>
+#include <memory>
 #include <optional>
-#include <system_error>
-#include <thread>
 #include <tuple>
 
-#include "atex/file_io.h"
 #include "atex/fit.h"
+#include "candidate_evaluator.h"
 #include "levers.h"
 #include "measure.h"
 #include "plan_state.h"
@@ -19,11 +16,17 @@
 
 namespace atex::fit {
 
+using internal::Better;
+using internal::Cached;
 using internal::Candidate;
+using internal::CandidateEvaluator;
+using internal::Evaluated;
 using internal::InitialState;
+using internal::kNoGain;
 using internal::Measured;
 using internal::Measurer;
 using internal::PlanTail;
+using internal::Pending;
 using internal::State;
 using internal::Stopwatch;
 
@@ -110,24 +113,6 @@ MoveKey KeyOf(const Move& m) {
           m.lever == Lever::kEncoding ? static_cast<int>(m.encoding) : -1};
 }
 
-// A proposal's cost per byte saved, measured at the current state (fresh) or an earlier one.
-struct Cached {
-  double ratio = 0;
-  uint64_t saving = 0;
-  bool fresh = false;
-};
-constexpr double kNoGain = std::numeric_limits<double>::infinity();
-struct Evaluated {
-  Cached cost;
-  bool encoded = false;   // the move applied and was encoded (a measurement once scored)
-  bool prepared = false;  // false: not a move at this state (cost stays kNoGain)
-  State next;             // the state after the move (kept only for the best fresh evaluation)
-  Candidate candidate;    // its measurement and decode
-};
-bool Better(const Cached& a, const Cached& b) {
-  return a.ratio < b.ratio || (a.ratio == b.ratio && a.saving > b.saving);
-}
-
 // kInvalidArgument for options or probes a plan cannot be built with.
 Status CheckPlanInputs(const ProbeRenderer& renderer, const PlanOptions& options) {
   if (!(options.prune_fraction > 0 && options.prune_fraction < 1) ||
@@ -151,145 +136,6 @@ Status CheckPlanInputs(const ProbeRenderer& renderer, const PlanOptions& options
   return Status::Ok();
 }
 
-// fn(0) .. fn(count - 1), on one thread each when count > 1; results in order. An exception
-// becomes the candidate's error; when a thread cannot be started, the rest run here, serially.
-template <typename Fn>
-std::vector<StatusOr<Evaluated>> PrepareAll(size_t count, const Fn& fn) {
-  std::vector<StatusOr<Evaluated>> results(count, Status(StatusCode::kInternal, "candidate not prepared"));
-  const auto run = [&](size_t i) {
-    try {
-      results[i] = fn(i);
-    } catch (const std::bad_alloc&) {
-      results[i] = Status(StatusCode::kLimitExceeded, "out of memory preparing a fit candidate");
-    } catch (const std::exception& e) {
-      results[i] = Status(StatusCode::kInternal, StrCat("preparing a fit candidate: ", e.what()));
-    }
-  };
-  std::vector<std::thread> threads;
-  threads.reserve(count);
-  size_t started = 0;
-  if (count > 1) {
-    try {
-      for (; started < count; ++started) threads.emplace_back(run, started);
-    } catch (const std::system_error&) {
-      // No more threads: the candidates not started are prepared on this one.
-    }
-  }
-  for (size_t i = started; i < count; ++i) run(i);
-  for (std::thread& t : threads) t.join();
-  return results;
-}
-
-// How many candidates to prepare at once: PlanOptions::parallel_candidates, or for 0 the
-// cores (at most 4), fewer when that many copies of the asset would not fit in half the
-// machine's memory (each candidate holds about four: the state's copy, its file, its decode and,
-// on a GPU backend, the decode's render state).
-size_t CandidatesAtOnce(const PlanOptions& options, const Asset& asset) {
-  if (options.parallel_candidates > 0) return static_cast<size_t>(options.parallel_candidates);
-  const Gaussians& g = asset.gaussians;
-  uint64_t bytes = sizeof(float) * (g.positions.size() + g.rotations.size() + g.log_scales.size() +
-                                    g.opacity_logits.size() + g.sh.size() + g.time_windows.size());
-  if (asset.textures) bytes += sizeof(float) * asset.textures->texels.size();
-  const uint64_t per_candidate = 4 * std::max<uint64_t>(bytes, 1);
-  const uint64_t fit = MemoryLimit(UINT64_MAX) / per_candidate;
-  return std::clamp<size_t>(std::min<uint64_t>(fit, std::thread::hardware_concurrency()), 1, 4);
-}
-
-// Applies proposals to the current state and measures them: prepared (the move applied to a
-// copy of the state, encoded and decoded: CPU work that several proposals do at once), then
-// scored (the probe renders, one at a time, in proposal order: the plan does not depend on how
-// many were prepared at once). `state` and `current` are BuildPlan's, read at each call.
-class CandidateEvaluator {
- public:
-  CandidateEvaluator(const PlanOptions& options, Plan* plan, Measurer* measurer, const State* state,
-                     const Measured* current)
-      : options_(options), plan_(plan), measurer_(measurer), state_(state), current_(current),
-        width_(CandidatesAtOnce(options, state->asset)) {}
-
-  // Evaluates `proposals`, `width_` prepared at a time, and hands each to `remember` in order.
-  // `spare` (proposals likely to be evaluated next at this state) fill the last wave's free
-  // places: they are prepared, not scored, and handed to `stash` (errors included) for later.
-  template <typename Remember, typename Stash>
-  Status EvaluateAll(const std::vector<const Move*>& proposals, const Remember& remember,
-                     const std::vector<const Move*>& spare, const Stash& stash) {
-    for (size_t begin = 0; begin < proposals.size(); begin += width_) {
-      const size_t count = std::min(width_, proposals.size() - begin);
-      const bool last = begin + count == proposals.size();
-      std::vector<const Move*> wave(proposals.begin() + static_cast<std::ptrdiff_t>(begin),
-                                    proposals.begin() + static_cast<std::ptrdiff_t>(begin + count));
-      for (size_t i = 0; last && i < spare.size() && wave.size() < width_; ++i) wave.push_back(spare[i]);
-      wave_busy_ = 0;
-      Stopwatch wave_clock;
-      std::vector<StatusOr<Evaluated>> prepared =
-          PrepareAll(wave.size(), [&](size_t i) { return Prepare(*wave[i]); });
-      plan_->timing.overlap_seconds += std::max(0.0, wave_busy_ - wave_clock.Lap());
-      for (size_t i = count; i < wave.size(); ++i) stash(*wave[i], std::move(prepared[i]));
-      for (size_t i = 0; i < count; ++i) {
-        if (!prepared[i].ok()) return prepared[i].status();
-        ATEX_RETURN_IF_ERROR(Score(&*prepared[i]));
-        remember(*wave[i], std::move(*prepared[i]));
-      }
-    }
-    return Status::Ok();
-  }
-
-  // Scores a prepared proposal; it then counts as a measurement.
-  Status Score(Evaluated* e) {
-    if (e->encoded) ++plan_->timing.measurements;
-    if (!e->prepared) return Status::Ok();
-    ATEX_RETURN_IF_ERROR(measurer_->Score(&e->candidate));
-    const Measured& measured = e->candidate.measured;
-    if (measured.bytes >= current_->bytes) return Status::Ok();
-    const uint64_t saving = current_->bytes - measured.bytes;
-    const double damage = std::max(0.0, measured.distortion - current_->distortion);
-    e->cost = Cached{damage / static_cast<double>(saving), saving, true};
-    return Status::Ok();
-  }
-
- private:
-  // Thread-safe: several run at once between two moves.
-  StatusOr<Evaluated> Prepare(const Move& proposal) {
-    Evaluated e;
-    e.cost = Cached{kNoGain, 0, true};
-    Stopwatch clock, whole;
-    const auto busy = [&] {  // this preparation's wall time, for the wave's overlap
-      std::lock_guard<std::mutex> lock(mutex_);
-      wave_busy_ += whole.Lap();
-    };
-    e.next = *state_;
-    const Status applied = ApplyMove(proposal, plan_->prune_order, &e.next.asset, &e.next.write, &e.next.kept,
-                                     options_.min_grid_resolution, e.next.memo.get());
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      plan_->timing.apply_seconds += clock.Lap();
-    }
-    if (!applied.ok()) {  // a move the state cannot take (e.g. nothing left to halve) is not a move
-      busy();
-      return e;
-    }
-    e.encoded = true;
-    auto candidate = measurer_->Prepare(e.next, proposal);
-    busy();
-    if (!candidate.ok()) {
-      // A stream that an encoding cannot hold (f16 overflow) is simply not a move.
-      if (candidate.status().code() == StatusCode::kOutOfRange) return e;
-      return candidate.status();
-    }
-    e.candidate = std::move(*candidate);
-    e.prepared = true;
-    return e;
-  }
-
-  const PlanOptions& options_;
-  Plan* plan_;
-  Measurer* measurer_;
-  const State* state_;
-  const Measured* current_;
-  const size_t width_;
-  std::mutex mutex_;       // the timing sums written by preparations running at once
-  double wave_busy_ = 0;   // summed preparation seconds of the current wave
-};
-
 // The proposals whose cost was measured at an earlier state and may still win, cheapest
 // first, less `skip`: the lazy greedy refreshes them in this order.
 template <typename Skip>
@@ -303,6 +149,19 @@ std::vector<const Move*> StaleByCost(const std::vector<Move>& proposals, const s
   std::stable_sort(stale.begin(), stale.end(),
                    [&](const Move* a, const Move* b) { return Better(cache.at(KeyOf(*a)), cache.at(KeyOf(*b))); });
   return stale;
+}
+
+// After `move` is taken every cost is stale, and the taken lever's is forgotten: its next step
+// is a different move (a new count, a new encoding).
+void ForgetAfter(const Move& move, std::map<MoveKey, Cached>* cache) {
+  for (auto& entry : *cache) entry.second.fresh = false;
+  cache->erase(KeyOf(move));
+  if (move.lever == Lever::kEncoding) {
+    // Both 16-bit options of a stream are decided once one is taken.
+    for (ScalarEncoding e : {ScalarEncoding::kFloat16, ScalarEncoding::kQuant16, ScalarEncoding::kQuant8}) {
+      cache->erase(MoveKey{static_cast<int>(Lever::kEncoding), static_cast<int>(move.stream), static_cast<int>(e)});
+    }
+  }
 }
 
 void ReportProgress(const PlanOptions& options, const Plan& plan, const Move& move, const Measured& current) {
@@ -319,15 +178,16 @@ void ReportProgress(const PlanOptions& options, const Plan& plan, const Move& mo
 class TailKeeper {
  public:
   // `before` is the state before `move`, the plan's move number `index`.
-  void Taken(const Move& move, size_t index, State before) {
-    before_last_ = std::make_shared<const State>(std::move(before));
+  void Taken(const Move& move, size_t index, std::shared_ptr<const State> before) {
+    before_last_ = std::move(before);
     if (move.lever != Lever::kEncoding) {
       if (before_content_.size() == 2) before_content_.erase(before_content_.begin());
       before_content_.emplace_back(index, before_last_);
     }
   }
   // The tail of a plan of `moves` moves built from `asset` with `write`, whose last state is `last`.
-  std::shared_ptr<const PlanTail> Finish(const Asset& asset, const WriteOptions& write, size_t moves, State last) {
+  std::shared_ptr<const PlanTail> Finish(const Asset& asset, const WriteOptions& write, size_t moves,
+                                         std::shared_ptr<const State> last) {
     auto tail = std::make_shared<PlanTail>();
     tail->input = &asset;
     tail->input_gaussians = asset.gaussians.size();
@@ -342,7 +202,7 @@ class TailKeeper {
       tail->states.push_back(std::move(before_last_));
     }
     tail->indices.push_back(moves);
-    tail->states.push_back(std::make_shared<const State>(std::move(last)));
+    tail->states.push_back(std::move(last));
     return tail;
   }
 
@@ -362,14 +222,16 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   plan.prune_order = ImportanceOrder(asset, options.seed);
   plan.levers = options.levers;
   plan.min_grid_resolution = options.min_grid_resolution;
-  State state = InitialState(asset, options.write);
-  plan.texture_memo = state.memo;
+  // Shared and never changed: preparations still running for an earlier state keep theirs.
+  std::shared_ptr<const State> state = std::make_shared<const State>(InitialState(asset, options.write));
+  plan.texture_memo = state->memo;
   // Most candidates change one or two chunks of the current state; the others are
   // compressed once, not once per candidate.
   EncodeCache chunks;
-  Measurer measurer(renderer, &chunks, &plan.timing);
+  Measurer measurer(renderer, &chunks, &plan.timing, internal::PruneMeasure::kRangeStable,
+                    /*keep_decoded=*/static_cast<bool>(options.accept_more));
   // Reference: the untrimmed asset exactly as given (before any re-encoding).
-  ATEX_ASSIGN_OR_RETURN(Measured current, measurer.Start(asset, state));
+  ATEX_ASSIGN_OR_RETURN(Measured current, measurer.Start(asset, *state));
   plan.initial_bytes = current.bytes;
   plan.initial_distortion = current.distortion;
 
@@ -382,7 +244,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   TailKeeper tail;
   while (current.bytes > options.floor_bytes) {
     Stopwatch propose_clock;
-    const std::vector<Move> proposals = Proposals(state, options, scale);
+    const std::vector<Move> proposals = Proposals(*state, options, scale);
     plan.timing.propose_seconds += propose_clock.Lap();
     if (proposals.empty()) break;
     // The best evaluation made at the current state, with its state and decoded asset.
@@ -403,8 +265,8 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
     // A refresh takes its speculative preparation when there is one: made at the same state,
     // it is the one the refresh would make, so the plan does not depend on it. The rest are
     // dropped when a move is taken.
-    std::map<MoveKey, StatusOr<Evaluated>> speculative;
-    const auto stash = [&](const Move& p, StatusOr<Evaluated> e) {
+    std::map<MoveKey, Pending> speculative;
+    const auto stash = [&](const Move& p, Pending e) {
       ++plan.timing.prepared_ahead;
       speculative.emplace(KeyOf(p), std::move(e));
     };
@@ -434,16 +296,17 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
         ATEX_RETURN_IF_ERROR(evaluator.EvaluateAll({best}, remember, spare({best}), stash));
         continue;
       }
-      StatusOr<Evaluated> e = std::move(ready->second);
+      StatusOr<Evaluated> e = evaluator.Collect(&ready->second);
       speculative.erase(ready);
       if (!e.ok()) return e.status();
       ATEX_RETURN_IF_ERROR(evaluator.Score(&*e));
       remember(*best, std::move(*e));
     }
     plan.timing.prepared_unused += static_cast<int>(speculative.size());
+    for (const auto& [key, pending] : speculative) evaluator.Drop(pending);
     if (chosen == nullptr) break;  // no lever saves bytes any more
     Evaluated& taken = best_fresh->second;
-    ATEX_ASSIGN_OR_RETURN(Measured measured, measurer.Take(taken.next, taken.candidate));
+    ATEX_ASSIGN_OR_RETURN(Measured measured, measurer.Take(taken.Ref(), taken.candidate));
     Move move = *chosen;
     move.bytes_after = measured.bytes;
     move.distortion_after = measured.distortion;
@@ -452,20 +315,14 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
       if (!more) break;
     }
     tail.Taken(move, plan.moves.size(), std::move(state));
-    state = std::move(taken.next);
+    state = std::make_shared<const State>(std::move(taken).Next());
     current = measured;
     plan.moves.push_back(move);
     scale.Taken(move.lever, options.step_growth);
-    for (auto& entry : cache) entry.second.fresh = false;
-    cache.erase(KeyOf(move));  // its next step is a different move (new count, new encoding)
-    if (move.lever == Lever::kEncoding) {
-      // Both 16-bit options of a stream are decided once one is taken.
-      for (ScalarEncoding e : {ScalarEncoding::kFloat16, ScalarEncoding::kQuant16, ScalarEncoding::kQuant8}) {
-        cache.erase(MoveKey{static_cast<int>(Lever::kEncoding), static_cast<int>(move.stream), static_cast<int>(e)});
-      }
-    }
+    ForgetAfter(move, &cache);
     ReportProgress(options, plan, move, current);
   }
+  evaluator.Finish();
   plan.tail = tail.Finish(asset, options.write, plan.moves.size(), std::move(state));
   plan.timing.total_seconds = whole.Lap();
   const ProbeRenderer::CacheCounts after = renderer->cache_counts();

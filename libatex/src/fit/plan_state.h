@@ -66,10 +66,15 @@ struct PlanTail {
 // the input index of each Gaussian kept. ApplyPlan falls back to it below the plan's end.
 StatusOr<State> SmallestState(const Asset& asset, const WriteOptions& write, int min_grid_resolution, LeverSet levers);
 
+// The state after `move` applied to `from` (ApplyMove), without copying first what the move
+// replaces: a prune gathers the Gaussians it keeps from `from` directly.
+StatusOr<State> AppliedTo(const State& from, const Move& move, const std::vector<uint32_t>& prune_order,
+                          int min_grid_resolution);
+
 // The state after moves[begin, end) applied to `start`; moves[k] (if in range) with its count
-// replaced by `count_k` (0: skipped).
-StatusOr<State> ApplyRange(State start, const Plan& plan, const std::vector<Move>& moves, size_t begin, size_t end,
-                           size_t k, uint64_t count_k);
+// replaced by `count_k` (0: skipped). The first move applied reads `start` (AppliedTo).
+StatusOr<State> ApplyRange(const State& start, const Plan& plan, const std::vector<Move>& moves, size_t begin,
+                           size_t end, size_t k, uint64_t count_k);
 
 // After an indivisible last move: gives the slack below the budget back by undoing the moves
 // before it, latest first (the plan took moves cheapest first, so the latest ones did the

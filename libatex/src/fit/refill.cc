@@ -36,7 +36,7 @@ class PrefixStates {
       const size_t index = k > kStride ? k - kStride : 0;
       State start = InitialState(asset_, write_);
       start.memo = memo_;  // the textures of every replay are mostly the same
-      ATEX_ASSIGN_OR_RETURN(State at, ApplyRange(std::move(start), plan_, moves, 0, index, moves.size(), 0));
+      ATEX_ASSIGN_OR_RETURN(State at, ApplyRange(start, plan_, moves, 0, index, moves.size(), 0));
       checkpoint_ = std::move(at);
       checkpoint_index_ = index;
     }

@@ -1,0 +1,59 @@
+// Worker threads for the plan's candidate preparations (plan.cc). Not part of the public API.
+//
+// BuildPlan prepares candidates (apply, encode, decode: CPU work) on several threads and scores
+// them (probe renders) one at a time, in a fixed order. With a pool instead of a thread per
+// candidate, the plan waits only for the candidate it scores next: the speculative preparations
+// beside it (refreshes the lazy greedy may need later) go on in the background while it scores,
+// and one that turns out unused is cancelled before it starts.
+#pragma once
+
+#include <condition_variable>
+#include <cstddef>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace atex::fit::internal {
+
+class PreparationPool {
+ public:
+  class Task;
+
+  // Starts up to `workers` threads (fewer when the system refuses one; with none, every task
+  // runs on the thread that finishes it).
+  explicit PreparationPool(size_t workers);
+  // Cancels the tasks not started and waits for the running ones.
+  ~PreparationPool();
+  PreparationPool(const PreparationPool&) = delete;
+  PreparationPool& operator=(const PreparationPool&) = delete;
+
+  // Queues `job`: urgent jobs start before the others, each kind in submission order. `job`
+  // must not throw (the plan's jobs catch and store their errors).
+  std::shared_ptr<Task> Submit(std::function<void()> job, bool urgent);
+  // Returns once `task` has run; runs it on the calling thread when no worker has started it.
+  // Precondition: `task` was not cancelled.
+  void Finish(const std::shared_ptr<Task>& task);
+  // A task not started never runs (its job is destroyed here); a running one finishes on its
+  // worker. Either way nothing waits for it.
+  void Cancel(const std::shared_ptr<Task>& task);
+  // Waits until no task runs and none is queued.
+  void WaitIdle();
+
+  size_t workers() const { return threads_.size(); }
+
+ private:
+  void Work();
+  void RunLocked(const std::shared_ptr<Task>& task, std::unique_lock<std::mutex>* lock);
+
+  std::mutex mutex_;
+  std::condition_variable changed_;  // a task queued, started or finished; or stopping
+  std::deque<std::shared_ptr<Task>> urgent_, later_;
+  size_t running_ = 0;
+  bool stopping_ = false;
+  std::vector<std::thread> threads_;
+};
+
+}  // namespace atex::fit::internal

@@ -1,0 +1,108 @@
+// PreparationPool (preparation_pool.h): order, cancellation, and tasks run by the caller.
+#include "fit/preparation_pool.h"
+
+#include <atomic>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace atex::fit::internal {
+namespace {
+
+// Holds the pool's only worker until Open.
+class Gate {
+ public:
+  void Pass() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    entered_ = true;
+    changed_.notify_all();
+    changed_.wait(lock, [&] { return open_; });
+  }
+  void WaitEntered() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    changed_.wait(lock, [&] { return entered_; });
+  }
+  void Open() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    open_ = true;
+    changed_.notify_all();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  bool entered_ = false, open_ = false;
+};
+
+TEST(PreparationPool, WithoutWorkersTheCallerRunsEachTask) {
+  PreparationPool pool(0);
+  EXPECT_EQ(pool.workers(), 0u);
+  int a = 0, b = 0;
+  auto first = pool.Submit([&] { a = 1; }, false);
+  auto second = pool.Submit([&] { b = 2; }, true);
+  pool.Finish(first);
+  EXPECT_EQ(a, 1);
+  EXPECT_EQ(b, 0);  // not waited for: not run
+  pool.WaitIdle();
+  EXPECT_EQ(b, 2);
+}
+
+TEST(PreparationPool, UrgentTasksStartFirstAndACancelledOneNeverRuns) {
+  PreparationPool pool(1);
+  Gate gate;
+  std::mutex mutex;
+  std::vector<int> order;
+  const auto record = [&](int id) {
+    return [&, id] {
+      std::lock_guard<std::mutex> lock(mutex);
+      order.push_back(id);
+    };
+  };
+  auto blocker = pool.Submit([&] { gate.Pass(); }, true);
+  gate.WaitEntered();  // the only worker is busy: the next tasks queue
+  auto later = pool.Submit(record(1), false);
+  auto held = std::make_shared<int>(7);
+  auto cancelled = pool.Submit([&, held] { record(2)(); }, false);
+  auto urgent = pool.Submit(record(3), true);
+  EXPECT_EQ(held.use_count(), 2);
+  pool.Cancel(cancelled);
+  EXPECT_EQ(held.use_count(), 1);  // the cancelled job is destroyed at once
+  gate.Open();
+  pool.WaitIdle();  // the worker runs the queue (WaitIdle runs nothing itself while there are workers)
+  EXPECT_EQ(order, (std::vector<int>{3, 1}));
+  pool.Finish(later);  // done already: returns at once
+}
+
+TEST(PreparationPool, FinishRunsAQueuedTaskOnTheCaller) {
+  PreparationPool pool(1);
+  Gate gate;
+  auto blocker = pool.Submit([&] { gate.Pass(); }, true);
+  gate.WaitEntered();
+  std::atomic<bool> ran{false};
+  auto task = pool.Submit([&] { ran = true; }, false);
+  pool.Finish(task);  // the worker is held: this thread runs it
+  EXPECT_TRUE(ran);
+  gate.Open();
+  pool.Finish(blocker);
+}
+
+TEST(PreparationPool, DestroyingThePoolDropsQueuedTasksAndFinishesRunningOnes) {
+  Gate gate;
+  std::atomic<int> ran{0};
+  auto held = std::make_shared<int>(1);
+  {
+    PreparationPool pool(1);
+    pool.Submit([&] { gate.Pass(); ++ran; }, true);
+    gate.WaitEntered();
+    pool.Submit([&, held] { ran += 10; }, false);
+    gate.Open();
+  }
+  EXPECT_EQ(ran.load() % 10, 1);  // the running task finished; the queued one may have started
+  EXPECT_EQ(held.use_count(), 1);
+}
+
+}  // namespace
+}  // namespace atex::fit::internal
