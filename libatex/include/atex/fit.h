@@ -273,6 +273,12 @@ struct Fitted {
   uint64_t plan_end_bytes = 0;
   double apply_seconds = 0;    // ApplyPlan's wall time
   double refill_seconds = 0;   // of which giving slack back below an indivisible last move
+  // Whole-file encodes of the replay, the count searches and the refill (not the output's own
+  // encode), and their seconds; the refill's part of them.
+  int trial_encodes = 0;
+  double trial_encode_seconds = 0;
+  int refill_encodes = 0;
+  double refill_encode_seconds = 0;
 };
 
 // Applies moves of `plan` in order until the encoded asset fits `budget_bytes`; the

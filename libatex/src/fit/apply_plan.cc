@@ -79,6 +79,7 @@ using internal::SmallestFallback;
 using internal::State;
 using internal::Stopwatch;
 using internal::RefillSlack;
+using internal::TrialEncoder;
 
 StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes) {
   Stopwatch whole;
@@ -93,8 +94,8 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
   };
   Fitted out;
   // The searches below encode many states that differ from each other in a few chunks.
-  EncodeCache cache;
-  const auto encode = [&cache](const State& s) { return EncodeAsset(s.asset, s.write, &cache); };
+  TrialEncoder encoder;
+  const auto encode = [&encoder](const State& s) { return encoder(s.asset, s.write); };
   State state;
   std::vector<uint8_t> bytes;
   uint64_t input_bytes = plan.initial_bytes;
@@ -155,9 +156,13 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
       // An indivisible last move (an encoding, the SH degree, the grid) can land far below the
       // budget; give the slack back by undoing moves before it, latest first.
       Stopwatch refill_clock;
-      ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes, &cache,
+      const int encodes_before = encoder.count();
+      const double encode_seconds_before = encoder.seconds();
+      ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes, &encoder,
                                        std::move(checkpoint), checkpoint_index));
       out.refill_seconds = refill_clock.Lap();
+      out.refill_encodes = encoder.count() - encodes_before;
+      out.refill_encode_seconds = encoder.seconds() - encode_seconds_before;
     }
   }
   // The output itself is encoded without the cache, whose hits rest on content fingerprints
@@ -169,6 +174,8 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
                      " bytes, above the budget of ", budget_bytes);
   }
   ATEX_RETURN_IF_ERROR(FinishOutput(std::move(bytes), std::move(state), &out));
+  out.trial_encodes = encoder.count();
+  out.trial_encode_seconds = encoder.seconds();
   out.apply_seconds = whole.Lap();
   return out;
 }

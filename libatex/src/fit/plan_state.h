@@ -38,6 +38,26 @@ struct State {
 
 State InitialState(const Asset& asset, const WriteOptions& write);
 
+// The whole-file encodes of ApplyPlan and its refill (trials and replays), through one chunk
+// cache (most of them differ in a few chunks), counted and timed for the report.
+class TrialEncoder {
+ public:
+  StatusOr<std::vector<uint8_t>> operator()(const Asset& asset, const WriteOptions& write) {
+    Stopwatch clock;
+    auto bytes = EncodeAsset(asset, write, &cache_);
+    seconds_ += clock.Lap();
+    ++count_;
+    return bytes;
+  }
+  int count() const { return count_; }
+  double seconds() const { return seconds_; }
+
+ private:
+  EncodeCache cache_;
+  int count_ = 0;
+  double seconds_ = 0;
+};
+
 // BuildPlan's states after some of its last moves (Plan::tail): `states[i]` is the state after
 // moves[0, indices[i]): after all its moves, after all but the last, and before each of its
 // last two content moves (no encoding moves). Valid for ApplyPlan calls given the very asset
@@ -87,7 +107,7 @@ StatusOr<State> ApplyRange(const State& start, const Plan& plan, const std::vect
 // `checkpoint`, when given, is the state after moves[0, checkpoint_index), replayed once by
 // the caller: the refill builds the states it needs from it instead of from the input.
 Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
-                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache,
+                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, TrialEncoder* encode,
                    std::optional<State> checkpoint = std::nullopt, size_t checkpoint_index = 0);
 
 // The index of the first move RefillSlack replays from a prefix when moves[0, end) come before

@@ -60,17 +60,17 @@ class PrefixStates {
 // texture move on a large asset takes most of a second to apply.
 StatusOr<std::optional<Refill>> SmallestFittingRefill(const State& prefix, const Plan& plan,
                                                       const std::vector<Move>& moves, size_t k, uint64_t budget,
-                                                      uint64_t full_bytes, EncodeCache* cache) {
+                                                      uint64_t full_bytes, TrialEncoder* encode) {
   // With a large slack the move is usually undone entirely: one trial instead of a search.
   ATEX_ASSIGN_OR_RETURN(State without, ApplyRange(prefix, plan, moves, k, moves.size(), k, 0));
-  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> without_bytes, EncodeAsset(without.asset, without.write, cache));
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> without_bytes, (*encode)(without.asset, without.write));
   if (without_bytes.size() <= budget) {
     return std::optional<Refill>(Refill{0, std::move(without), std::move(without_bytes)});
   }
   std::optional<Refill> best;  // the last fitting trial: the smallest count found to fit so far
   const auto bytes_at = [&](uint64_t count) -> StatusOr<uint64_t> {
     ATEX_ASSIGN_OR_RETURN(State trial, ApplyRange(prefix, plan, moves, k, moves.size(), k, count));
-    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, EncodeAsset(trial.asset, trial.write, cache));
+    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, (*encode)(trial.asset, trial.write));
     const uint64_t size = trial_bytes.size();
     if (size <= budget) best = Refill{count, std::move(trial), std::move(trial_bytes)};
     return size;
@@ -94,7 +94,7 @@ StatusOr<std::optional<Refill>> SmallestFittingRefill(const State& prefix, const
 // saved, `saved` bytes. A trial predicted over the budget by more than a margin is skipped.
 StatusOr<bool> UndoEncoding(const WriteOptions& write, const std::vector<Move>& moves, size_t k, uint64_t budget,
                             bool same_content, uint64_t saved, State* state, std::vector<uint8_t>* bytes,
-                            EncodeCache* cache) {
+                            TrialEncoder* encode) {
   const Move& undone = moves[k];
   for (size_t i = k + 1; i < moves.size(); ++i) {
     if (moves[i].lever == Lever::kEncoding && moves[i].stream == undone.stream) return false;
@@ -107,7 +107,7 @@ StatusOr<bool> UndoEncoding(const WriteOptions& write, const std::vector<Move>& 
   }
   WriteOptions without = state->write;
   SetEncoding(&without, undone.stream, before);
-  auto trial_bytes = EncodeAsset(state->asset, without, cache);
+  auto trial_bytes = (*encode)(state->asset, without);
   // A stream the earlier encoding cannot hold is not an undo.
   if (!trial_bytes.ok() || trial_bytes->size() > budget || trial_bytes->size() <= bytes->size()) return false;
   state->write = without;
@@ -133,7 +133,7 @@ size_t FirstRefillPrefix(const std::vector<Move>& moves, size_t end) {
 // degree, the grid) is undone whole when the output without it still fits and grows, else
 // skipped. Every state taken was encoded and fits, so the output stays within the budget.
 Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
-                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, EncodeCache* cache,
+                   std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, TrialEncoder* encode,
                    std::optional<State> checkpoint, size_t checkpoint_index) {
   std::optional<size_t> earliest_changed;  // index (after any removals) of the earliest move changed
   PrefixStates prefixes(asset, write, plan, state->memo, std::move(checkpoint), checkpoint_index);
@@ -149,7 +149,7 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
       const uint64_t before = k == 0 ? plan.initial_bytes : (*moves)[k - 1].bytes_after;
       const uint64_t saved = before > (*moves)[k].bytes_after ? before - (*moves)[k].bytes_after : 0;
       ATEX_ASSIGN_OR_RETURN(const bool undone,
-                            UndoEncoding(write, *moves, k, budget, same_content, saved, state, bytes, cache));
+                            UndoEncoding(write, *moves, k, budget, same_content, saved, state, bytes, encode));
       if (undone) {
         moves->erase(moves->begin() + static_cast<std::ptrdiff_t>(k));
         earliest_changed = k;
@@ -162,7 +162,7 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
     if (!(*moves)[k].divisible()) {
       auto trial = ApplyRange(*prefix, plan, *moves, k, moves->size(), k, 0);
       if (!trial.ok()) continue;  // the moves after it do not apply without it: keep it
-      auto trial_bytes = EncodeAsset(trial->asset, trial->write, cache);
+      auto trial_bytes = (*encode)(trial->asset, trial->write);
       if (!trial_bytes.ok() || trial_bytes->size() > budget || trial_bytes->size() <= bytes->size()) continue;
       *state = std::move(*trial);
       *bytes = std::move(*trial_bytes);
@@ -171,7 +171,7 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
       continue;
     }
     ATEX_ASSIGN_OR_RETURN(std::optional<Refill> refill,
-                          SmallestFittingRefill(*prefix, plan, *moves, k, budget, bytes->size(), cache));
+                          SmallestFittingRefill(*prefix, plan, *moves, k, budget, bytes->size(), encode));
     if (!refill) break;  // move k is needed whole: the budget binds here
     *state = std::move(refill->state);
     *bytes = std::move(refill->bytes);
@@ -198,7 +198,7 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
   for (size_t i = *earliest_changed; i + 1 < moves->size(); ++i) {
     ATEX_RETURN_IF_ERROR(ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept,
                                    plan.min_grid_resolution, replay.memo.get()));
-    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> step_bytes, EncodeAsset(replay.asset, replay.write, cache));
+    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> step_bytes, (*encode)(replay.asset, replay.write));
     (*moves)[i].bytes_after = step_bytes.size();
   }
   moves->back().bytes_after = bytes->size();

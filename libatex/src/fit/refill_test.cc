@@ -19,7 +19,7 @@ namespace atex::fit {
 namespace {
 
 TEST(Refill, EveryOutputIsItsMovesReplayedFromTheInput) {
-  int refilled = 0, undone_encodings = 0;
+  int refilled = 0, undone_encodings = 0, refill_encoded = 0;
   for (const uint64_t seed : {7u, 19u}) {
     const testing::PlanFixture f = testing::MakePlan(container::SyntheticTextures::kMixed, seed);
     const Asset& asset = f.asset;
@@ -33,6 +33,14 @@ TEST(Refill, EveryOutputIsItsMovesReplayedFromTheInput) {
       ASSERT_TRUE(fitted.ok()) << fitted.status().ToString();
       ASSERT_LE(fitted->bytes.size(), budget);
       refilled += fitted->refill_seconds > 0;
+      // The report's encode counts: the refill's are part of ApplyPlan's (some refills skip
+      // every trial by arithmetic; no refill, no refill encodes).
+      EXPECT_LE(fitted->refill_encodes, fitted->trial_encodes);
+      EXPECT_LE(fitted->refill_encode_seconds, fitted->trial_encode_seconds);
+      if (fitted->refill_seconds == 0) {
+        EXPECT_EQ(fitted->refill_encodes, 0) << "budget " << budget;
+      }
+      refill_encoded += fitted->refill_encodes > 0;
       // The plan's moves up to the first that fits (ApplyPlan's), against the output's: an
       // encoding move fewer is one the refill undid.
       size_t j = 0;
@@ -62,6 +70,7 @@ TEST(Refill, EveryOutputIsItsMovesReplayedFromTheInput) {
     }
   }
   EXPECT_GT(refilled, 0);
+  EXPECT_GT(refill_encoded, 0);
   EXPECT_GT(undone_encodings, 0);  // the shortcut of encoding moves was taken, not only tried
 }
 

@@ -199,6 +199,10 @@ StatusOr<Fitted> Run::FitOnce(const Asset& start, const WriteOptions& start_writ
   if (fitted.ok()) {
     timing["apply_plan_seconds"] = fitted->apply_seconds;
     timing["refill_seconds"] = fitted->refill_seconds;
+    timing["apply_plan_encodes"] = fitted->trial_encodes;
+    timing["apply_plan_encode_seconds"] = fitted->trial_encode_seconds;
+    timing["refill_encodes"] = fitted->refill_encodes;
+    timing["refill_encode_seconds"] = fitted->refill_encode_seconds;
   }
   plan_timings_.push_back(std::move(timing));
   return fitted;
