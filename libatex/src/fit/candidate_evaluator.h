@@ -54,8 +54,9 @@ inline bool Better(const Cached& a, const Cached& b) {
 
 // How many candidates to prepare at once: PlanOptions::parallel_candidates, or for 0 the
 // cores (at most 4), fewer when that many copies of the asset would not fit in half the
-// machine's memory (each candidate holds about four: the state's copy, its file, its decode and,
-// on a GPU backend, the decode's render state).
+// machine's memory. Counted as four copies per candidate, an upper bound: the state's copy (none
+// for an encoding move), its file, its decode (whose arrays a GPU render state takes over, or
+// copies with --quality).
 size_t CandidatesAtOnce(const PlanOptions& options, const Asset& asset);
 
 // A preparation handed to the pool: its result is written by the task, read once it finished.

@@ -130,15 +130,20 @@ Planned PlanWith(int parallel, double growth, LeverSet levers = kDefaultLevers, 
   return {std::move(*plan), *minimum};
 }
 
-TEST(Plan, TheSamePlanWhateverTheCandidatesPreparedAtOnce) {
-  const Planned serial = PlanWith(1, 2.0), parallel = PlanWith(5, 2.0);
-  ASSERT_EQ(serial.plan.moves.size(), parallel.plan.moves.size());
-  for (size_t i = 0; i < serial.plan.moves.size(); ++i) {
-    const Move &a = serial.plan.moves[i], &b = parallel.plan.moves[i];
+// The same moves, move for move: kind, count, size and distortion after each.
+void ExpectSameMoves(const Plan& expected, const Plan& actual) {
+  ASSERT_EQ(expected.moves.size(), actual.moves.size());
+  for (size_t i = 0; i < expected.moves.size(); ++i) {
+    const Move &a = expected.moves[i], &b = actual.moves[i];
     EXPECT_EQ(DescribeMove(a), DescribeMove(b)) << i;
     EXPECT_EQ(a.bytes_after, b.bytes_after) << i;
     EXPECT_EQ(a.distortion_after, b.distortion_after) << i;
   }
+}
+
+TEST(Plan, TheSamePlanWhateverTheCandidatesPreparedAtOnce) {
+  const Planned serial = PlanWith(1, 2.0), parallel = PlanWith(5, 2.0);
+  ExpectSameMoves(serial.plan, parallel.plan);
   EXPECT_EQ(serial.plan.timing.measurements, parallel.plan.timing.measurements);
   EXPECT_EQ(serial.plan.timing.overlap_seconds, 0.0);
   // The parallel plan prepared stale proposals ahead of their refresh and used some of them.
@@ -152,13 +157,7 @@ TEST(Plan, TheSamePlanWhateverTheCandidatesPreparedAtOnce) {
 TEST(Plan, ScoringBesidePreparationsGivesTheSamePlan) {
   const Planned serial = PlanWith(1, 2.0, kDefaultLevers, true), parallel = PlanWith(4, 2.0, kDefaultLevers, true);
   ASSERT_GE(serial.plan.moves.size(), 3u);
-  ASSERT_EQ(serial.plan.moves.size(), parallel.plan.moves.size());
-  for (size_t i = 0; i < serial.plan.moves.size(); ++i) {
-    const Move &a = serial.plan.moves[i], &b = parallel.plan.moves[i];
-    EXPECT_EQ(DescribeMove(a), DescribeMove(b)) << i;
-    EXPECT_EQ(a.bytes_after, b.bytes_after) << i;
-    EXPECT_EQ(a.distortion_after, b.distortion_after) << i;
-  }
+  ExpectSameMoves(serial.plan, parallel.plan);
   EXPECT_EQ(serial.plan.timing.measurements, parallel.plan.timing.measurements);
   EXPECT_GT(serial.plan.timing.render_state_seconds, 0.0);  // the GPU path's render states
   EXPECT_EQ(serial.plan.timing.prepared_ahead, 0);
