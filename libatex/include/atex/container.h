@@ -104,10 +104,16 @@ class EncodeCache {
 
  private:
   friend StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset&, const WriteOptions&, EncodeCache*);
+  friend StatusOr<uint64_t> EncodedAssetSize(const Asset&, const WriteOptions&, EncodeCache*);
   Impl* impl_;
 };
 // EncodeAsset through `cache` (nullptr: no cache).
 StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOptions& options, EncodeCache* cache);
+
+// EncodeAsset(asset, options, cache)->size(), with the same errors, without assembling the
+// file: the chunks are encoded (through `cache`, which they fill as EncodeAsset's do) and
+// laid out, not copied into one buffer. For callers that need the size of many variants.
+StatusOr<uint64_t> EncodedAssetSize(const Asset& asset, const WriteOptions& options, EncodeCache* cache = nullptr);
 
 // Remembers decoded attribute streams so that decoding a file whose chunks are partly
 // byte-identical to recently decoded ones decompresses and converts only the others (the

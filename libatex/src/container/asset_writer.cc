@@ -19,6 +19,7 @@
 #include "container/fingerprint.h"
 #include "container/format.h"
 #include "container/layout.h"
+#include "container/read_back.h"
 
 namespace atex {
 
@@ -94,7 +95,9 @@ bool ValidEncoding(ScalarEncoding e) {
   return static_cast<uint8_t>(e) <= static_cast<uint8_t>(ScalarEncoding::kQuant8);
 }
 
-Status CheckOptions(const WriteOptions& o) {
+}  // namespace
+
+Status CheckWriteOptions(const WriteOptions& o) {
   if (static_cast<uint8_t>(o.codec) > static_cast<uint8_t>(Codec::kDeltaShuffleZstd)) {
     return MakeError(StatusCode::kInvalidArgument, "WriteOptions::codec must be raw, zstd, shuffle-zstd or "
                      "delta-shuffle-zstd (Draco is chosen with draco_positions)");
@@ -117,6 +120,8 @@ Status CheckOptions(const WriteOptions& o) {
   }
   return Status::Ok();
 }
+
+namespace {
 
 OutputChunk Header(ChunkId id, uint64_t raw_size) {
   OutputChunk c;
@@ -302,16 +307,20 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
   return EncodeAsset(asset, options, nullptr);
 }
 
-StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOptions& options, EncodeCache* cache) {
+namespace {
+
+// Every chunk of the file, in file order (EncodeAsset lays them out).
+StatusOr<std::vector<container::SharedChunk>> EncodeChunks(const Asset& asset, const WriteOptions& options,
+                                                           EncodeCache::Impl* cache) {
   using namespace container;
-  ATEX_RETURN_IF_ERROR(CheckOptions(options));
+  ATEX_RETURN_IF_ERROR(CheckWriteOptions(options));
   ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
   try {
     const Gaussians& g = asset.gaussians;
     const uint64_t n = g.size();
     const uint32_t k = static_cast<uint32_t>(g.sh_coeffs());
     const WriteOptions& o = options;
-    const Context ctx{options, cache != nullptr ? cache->impl_ : nullptr};
+    const Context ctx{options, cache};
     std::vector<ChunkJob> jobs;
 
     jobs.push_back({ChunkId::kMeta, [&]() -> StatusOr<SharedChunk> {
@@ -395,21 +404,42 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
       }
     }
     std::vector<SharedChunk> shared;
-    std::vector<const OutputChunk*> chunks;
     shared.reserve(results.size());
-    chunks.reserve(results.size());
     for (auto& result : results) {
       if (!result.ok()) return result.status();
       shared.push_back(std::move(result).value());
-      chunks.push_back(shared.back().get());
     }
-    return AssembleContainer(chunks);
+    return shared;
   } catch (const std::bad_alloc&) {
     return MakeError(StatusCode::kLimitExceeded, "out of memory while encoding an asset of ", asset.gaussians.size(),
                      " Gaussians");
   } catch (const std::exception& e) {
     return MakeError(StatusCode::kInternal, "EncodeAsset: ", e.what());
   }
+}
+
+std::vector<const container::OutputChunk*> Pointers(const std::vector<container::SharedChunk>& shared) {
+  std::vector<const container::OutputChunk*> chunks;
+  chunks.reserve(shared.size());
+  for (const auto& chunk : shared) chunks.push_back(chunk.get());
+  return chunks;
+}
+
+}  // namespace
+
+StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOptions& options, EncodeCache* cache) {
+  ATEX_ASSIGN_OR_RETURN(const auto shared, EncodeChunks(asset, options, cache != nullptr ? cache->impl_ : nullptr));
+  try {
+    return container::AssembleContainer(Pointers(shared));
+  } catch (const std::bad_alloc&) {
+    return MakeError(StatusCode::kLimitExceeded, "out of memory while laying out an asset of ", asset.gaussians.size(),
+                     " Gaussians");
+  }
+}
+
+StatusOr<uint64_t> EncodedAssetSize(const Asset& asset, const WriteOptions& options, EncodeCache* cache) {
+  ATEX_ASSIGN_OR_RETURN(const auto shared, EncodeChunks(asset, options, cache != nullptr ? cache->impl_ : nullptr));
+  return container::ContainerSize(Pointers(shared));
 }
 
 Status WriteAssetFile(const std::string& path, const Asset& asset, const WriteOptions& options) {

@@ -1,8 +1,12 @@
 #include "container/attribute_stream.h"
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "container/byte_io.h"
 #include "container/format.h"
@@ -45,7 +49,54 @@ uint64_t StreamHeaderBytes(ScalarEncoding encoding, uint32_t components) {
 
 namespace {
 
-// q = clamp(floor((v - lo) / (hi - lo) · lmax + 0.5), 0, lmax) in binary64, for values [rows][C]
+// q = clamp(floor((v - lo) / (hi - lo) · lmax + 0.5), 0, lmax) in binary64; 0 where hi = lo
+// (range = f64(hi) - f64(lo), top = lmax). The one definition of §6's quantisation, shared by
+// the encoder and ReadBackStream. For 0 <= t < 2^62 the floor is the truncation (cheaper than
+// floor without SSE4.1), which is every value within [lo, hi].
+template <typename T>
+inline T Quantise(float value, double low, double range, double top) {
+  if (!(range > 0)) return 0;
+  const double t = (static_cast<double>(value) - low) / range * top + 0.5;
+  const double whole = (t >= 0.0 && t < 4.0e18) ? static_cast<double>(static_cast<int64_t>(t)) : std::floor(t);
+  return static_cast<T>(std::clamp(whole, 0.0, top));
+}
+
+// Blocks of rows for work on `values` values: 1 (no threads) below a quarter million.
+int64_t RowBlocks(uint64_t rows, uint64_t values) {
+  constexpr uint64_t kParallelValues = uint64_t{1} << 18;
+#ifdef _OPENMP
+  if (values >= kParallelValues && rows > 1) return static_cast<int64_t>(std::min<uint64_t>(rows, 64));
+#endif
+  (void)values;
+  return rows > 0 ? 1 : 0;
+}
+
+// Calls f(block, begin, end) for each of `blocks` blocks of [0, rows), which cover it in order,
+// on several threads when there are several blocks: a parallel region of its own, or, inside
+// one (the encoder's chunks run in one), tasks that the region's idle threads take. f must not
+// throw.
+template <typename F>
+void ForRowBlocks(uint64_t rows, int64_t blocks, F&& f) {
+  const auto block = [&](int64_t b) {
+    f(b, rows * static_cast<uint64_t>(b) / static_cast<uint64_t>(blocks),
+      rows * static_cast<uint64_t>(b + 1) / static_cast<uint64_t>(blocks));
+  };
+#ifdef _OPENMP
+  if (blocks > 1) {
+    if (omp_in_parallel()) {
+#pragma omp taskloop grainsize(1)
+      for (int64_t b = 0; b < blocks; ++b) block(b);
+    } else {
+#pragma omp parallel for schedule(static)
+      for (int64_t b = 0; b < blocks; ++b) block(b);
+    }
+    return;
+  }
+#endif
+  for (int64_t b = 0; b < blocks; ++b) block(b);
+}
+
+// The quantisation below, for values [rows][C]
 // (C = lo.size()), stored little-endian as T at `out`; q = 0 where hi = lo. Row by row with the
 // per-component terms computed once: the same operations in the same order as per value, so the
 // same bits, without a division of the index by C per value.
@@ -59,25 +110,136 @@ void QuantiseRows(const float* values, uint64_t rows, const std::vector<float>& 
     range[c] = static_cast<double>(hi[c]) - static_cast<double>(lo[c]);
   }
   const double top = static_cast<double>(lmax);
-  for (uint64_t r = 0; r < rows; ++r) {
-    const float* row = values + r * components;
-    uint8_t* row_out = out + r * components * sizeof(T);
-    for (size_t c = 0; c < components; ++c) {
-      T q = 0;
-      if (range[c] > 0) {
-        const double t = std::floor((static_cast<double>(row[c]) - low[c]) / range[c] * top + 0.5);
-        q = static_cast<T>(std::clamp(t, 0.0, top));
+  ForRowBlocks(rows, RowBlocks(rows, rows * components), [&](int64_t, uint64_t begin, uint64_t end) {
+    for (uint64_t r = begin; r < end; ++r) {
+      const float* row = values + r * components;
+      uint8_t* row_out = out + r * components * sizeof(T);
+      for (size_t c = 0; c < components; ++c) {
+        const T q = Quantise<T>(row[c], low[c], range[c], top);
+        if constexpr (sizeof(T) == 1) {
+          row_out[c] = q;
+        } else {
+          StoreLE<T>(row_out + c * sizeof(T), q);
+        }
       }
-      if constexpr (sizeof(T) == 1) {
-        row_out[c] = q;
-      } else {
-        StoreLE<T>(row_out + c * sizeof(T), q);
+    }
+  });
+}
+
+}  // namespace
+
+void StreamRange(const float* values, size_t stride, uint64_t rows, uint32_t components, float* lo, float* hi) {
+  std::fill_n(lo, components, 0.0f);
+  std::fill_n(hi, components, 0.0f);
+  if (rows == 0) return;
+  // Each block's range from its first row on, then the blocks' ranges in block order: std::min
+  // and std::max keep the earlier of two equal values, so the result is the first minimum (and
+  // maximum) in row order, as one pass would find it (-0 and +0 are equal).
+  const int64_t blocks = RowBlocks(rows, rows * components);
+  std::vector<float> block_lo(static_cast<size_t>(blocks) * components);  // [blocks][C]
+  std::vector<float> block_hi(block_lo.size());
+  ForRowBlocks(rows, blocks, [&](int64_t b, uint64_t begin, uint64_t end) {
+    float* l = block_lo.data() + b * components;
+    float* h = block_hi.data() + b * components;
+    std::copy_n(values + begin * stride, components, l);
+    std::copy_n(values + begin * stride, components, h);
+    for (uint64_t r = begin + 1; r < end; ++r) {
+      const float* row = values + r * stride;
+      for (uint32_t c = 0; c < components; ++c) {
+        l[c] = std::min(l[c], row[c]);
+        h[c] = std::max(h[c], row[c]);
       }
+    }
+  });
+  std::copy_n(block_lo.begin(), components, lo);
+  std::copy_n(block_hi.begin(), components, hi);
+  for (int64_t b = 1; b < blocks; ++b) {
+    for (uint32_t c = 0; c < components; ++c) {
+      lo[c] = std::min(lo[c], block_lo[b * components + c]);
+      hi[c] = std::max(hi[c], block_hi[b * components + c]);
     }
   }
 }
 
-}  // namespace
+Status ReadBackStream(const float* in, size_t in_stride, uint64_t rows, uint32_t components, ScalarEncoding encoding,
+                      float* out, size_t out_stride, const char* what) {
+  if (EncodingBytes(encoding) == 0) {
+    return MakeError(StatusCode::kInvalidArgument, what, ": unknown encoding ", int{static_cast<uint8_t>(encoding)});
+  }
+  std::vector<double> low(components), range(components);  // [C], as the decoder reads them
+  if (IsQuantised(encoding)) {
+    std::vector<float> lo(components), hi(components);  // [C], as the encoder stores them
+    StreamRange(in, in_stride, rows, components, lo.data(), hi.data());
+    for (uint32_t c = 0; c < components; ++c) {
+      low[c] = lo[c];
+      range[c] = static_cast<double>(hi[c]) - static_cast<double>(lo[c]);
+    }
+  }
+  const double top = IsQuantised(encoding) ? QuantMax(encoding) : 0.0;
+  std::atomic<uint64_t> overflow_at{UINT64_MAX};  // the first value f16 cannot hold
+  // One loop per encoding, so that the encoding's test is not inside it.
+  const auto each_value = [&](auto value_of) {
+    ForRowBlocks(rows, RowBlocks(rows, rows * components), [&](int64_t, uint64_t begin, uint64_t end) {
+      for (uint64_t r = begin; r < end; ++r) {
+        const float* row = in + r * in_stride;
+        float* row_out = out + r * out_stride;
+        for (uint32_t c = 0; c < components; ++c) row_out[c] = value_of(row[c], c, r);
+      }
+    });
+  };
+  switch (encoding) {
+    case ScalarEncoding::kFloat32: each_value([](float v, uint32_t, uint64_t) { return v; }); break;
+    case ScalarEncoding::kFloat16:
+      each_value([&](float v, uint32_t c, uint64_t r) {
+        bool overflow = false;
+        const uint16_t h = FloatToHalf(v, &overflow);
+        if (overflow) {
+          const uint64_t here = r * components + c;
+          uint64_t at = overflow_at.load();
+          while (here < at && !overflow_at.compare_exchange_weak(at, here)) {
+          }
+        }
+        return HalfToFloat(h);
+      });
+      break;
+    case ScalarEncoding::kQuant16:
+    case ScalarEncoding::kQuant8: {
+      // Each component's dequantised levels once, when the stream is long enough to pay for
+      // them (a table an eighth of the values at most): the same Dequantise of the same level,
+      // so the same values.
+      const size_t levels = static_cast<size_t>(top) + 1;
+      if (rows >= 8 * levels) {
+        std::vector<float> table(levels * components);  // [C][levels]
+        for (uint32_t c = 0; c < components; ++c) {
+          for (size_t q = 0; q < levels; ++q) {
+            table[c * levels + q] = Dequantise(static_cast<uint32_t>(q), low[c], range[c], top);
+          }
+        }
+        if (encoding == ScalarEncoding::kQuant16) {
+          each_value([&](float v, uint32_t c, uint64_t) {
+            return table[c * levels + Quantise<uint16_t>(v, low[c], range[c], top)];
+          });
+        } else {
+          each_value([&](float v, uint32_t c, uint64_t) {
+            return table[c * levels + Quantise<uint8_t>(v, low[c], range[c], top)];
+          });
+        }
+      } else {
+        // Quantise<uint16_t> holds both encodings' levels (clamped to top).
+        each_value([&](float v, uint32_t c, uint64_t) {
+          return Dequantise(Quantise<uint16_t>(v, low[c], range[c], top), low[c], range[c], top);
+        });
+      }
+      break;
+    }
+  }
+  if (const uint64_t at = overflow_at.load(); at != UINT64_MAX) {
+    const float value = in[(at / components) * in_stride + at % components];
+    return MakeError(StatusCode::kOutOfRange, what, " row ", at / components, " component ", at % components, " = ",
+                     value, " does not fit float16 (|v| < 65520)");
+  }
+  return Status::Ok();
+}
 
 StatusOr<std::vector<uint8_t>> EncodeStream(const float* values, uint64_t rows, uint32_t components,
                                             ScalarEncoding encoding, const char* what) {
@@ -88,9 +250,16 @@ StatusOr<std::vector<uint8_t>> EncodeStream(const float* values, uint64_t rows, 
     return MakeError(StatusCode::kInvalidArgument, what, ": unknown encoding ", int{static_cast<uint8_t>(encoding)});
   }
   const uint64_t count = rows * components;
-  uint32_t bad = 0;  // a branch-free pass; the position only on failure
-  for (uint64_t i = 0; i < count; ++i)
-    bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(values[i]) & 0x7F800000u) == 0x7F800000u);
+  // A branch-free pass per block of rows; the position only on failure.
+  const int64_t blocks = RowBlocks(rows, count);
+  std::vector<uint32_t> block_bad(static_cast<size_t>(blocks), 0);
+  ForRowBlocks(rows, blocks, [&](int64_t b, uint64_t begin, uint64_t end) {
+    uint32_t bad = 0;
+    for (uint64_t i = begin * components; i < end * components; ++i)
+      bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(values[i]) & 0x7F800000u) == 0x7F800000u);
+    block_bad[static_cast<size_t>(b)] = bad;
+  });
+  const bool bad = std::any_of(block_bad.begin(), block_bad.end(), [](uint32_t x) { return x != 0; });
   for (uint64_t i = 0; bad && i < count; ++i) {
     if (!std::isfinite(values[i]))
       return NonFinite(what, i / components, static_cast<uint32_t>(i % components), values[i]);
@@ -131,20 +300,8 @@ StatusOr<std::vector<uint8_t>> EncodeStream(const float* values, uint64_t rows, 
     }
     case ScalarEncoding::kQuant16:
     case ScalarEncoding::kQuant8: {
-      // Row by row (one pass over the values, in order: each component sees its values in the
-      // same order as a pass per component would, so ties of -0 and +0 resolve the same way).
-      std::vector<float> lo(components, 0.0f), hi(components, 0.0f);  // [C]
-      if (rows > 0) {
-        std::copy_n(values, components, lo.begin());
-        std::copy_n(values, components, hi.begin());
-      }
-      for (uint64_t r = 1; r < rows; ++r) {
-        const float* row = values + r * components;
-        for (uint32_t c = 0; c < components; ++c) {
-          lo[c] = std::min(lo[c], row[c]);
-          hi[c] = std::max(hi[c], row[c]);
-        }
-      }
+      std::vector<float> lo(components), hi(components);  // [C]
+      StreamRange(values, components, rows, components, lo.data(), hi.data());
       for (uint32_t c = 0; c < components; ++c) {
         w.Put<float>(lo[c]);
         w.Put<float>(hi[c]);

@@ -24,6 +24,20 @@ uint64_t StreamHeaderBytes(ScalarEncoding encoding, uint32_t components);
 StatusOr<std::vector<uint8_t>> EncodeStream(const float* values, uint64_t rows, uint32_t components,
                                             ScalarEncoding encoding, const char* what);
 
+// Per-component minimum and maximum (lo[c], hi[c]; both 0 for no rows) of `rows` rows of
+// `components` values, row r at values + r * stride: the ranges a quantised stream stores.
+// Equal values resolve as in one pass in row order (the first minimum wins, -0 and +0 being
+// equal), on several threads for large streams outside a parallel region.
+void StreamRange(const float* values, size_t stride, uint64_t rows, uint32_t components, float* lo, float* hi);
+
+// The values DecodeStream gives back for EncodeStream(values, rows, components, encoding),
+// bit for bit, computed without building the stream: row r of the input at in + r * in_stride
+// (finite values, as ValidateAsset guarantees), written to out + r * out_stride (`out` may be
+// `in` with the same stride). kOutOfRange, as EncodeStream's, for a value f16 cannot hold.
+// Several threads for large streams outside a parallel region.
+Status ReadBackStream(const float* in, size_t in_stride, uint64_t rows, uint32_t components, ScalarEncoding encoding,
+                      float* out, size_t out_stride, const char* what);
+
 // What a stream header says, read without decoding the values.
 struct StreamInfo {
   ScalarEncoding encoding = ScalarEncoding::kFloat32;

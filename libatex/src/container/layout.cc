@@ -176,10 +176,15 @@ std::vector<uint8_t> AssembleContainer(const std::vector<OutputChunk>& chunks) {
   return AssembleContainer(pointers);
 }
 
+uint64_t ContainerSize(const std::vector<const OutputChunk*>& chunks) {
+  uint64_t file_size = kHeaderSize + kTocEntrySize * chunks.size();
+  for (const OutputChunk* chunk : chunks) file_size = Align8(file_size + chunk->stored.size());
+  return file_size;
+}
+
 std::vector<uint8_t> AssembleContainer(const std::vector<const OutputChunk*>& chunks) {
   const uint64_t toc_end = kHeaderSize + kTocEntrySize * chunks.size();
-  uint64_t file_size = toc_end;
-  for (const OutputChunk* chunk : chunks) file_size = Align8(file_size + chunk->stored.size());
+  const uint64_t file_size = ContainerSize(chunks);
   // Header and TOC first, zeroed; the chunks are appended after (a large file is not zeroed
   // first and then overwritten).
   std::vector<uint8_t> out;

@@ -56,6 +56,9 @@ struct OutputChunk {
   std::optional<uint32_t> crc;
 };
 
+// The size of AssembleContainer(chunks)'s file: header, TOC and each chunk padded to 8 bytes.
+uint64_t ContainerSize(const std::vector<const OutputChunk*>& chunks);
+
 // Lays out header, TOC and chunks canonically and fills in every CRC.
 std::vector<uint8_t> AssembleContainer(const std::vector<OutputChunk>& chunks);
 std::vector<uint8_t> AssembleContainer(const std::vector<const OutputChunk*>& chunks);

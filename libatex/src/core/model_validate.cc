@@ -5,6 +5,9 @@
 #include <limits>
 #include <cstdint>
 #include <string>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "atex/model.h"
 #include "core/model_limits.h"
@@ -25,9 +28,17 @@ Status CheckFinite(const char* what, const std::vector<float>& values, size_t ro
                    float max_abs = std::numeric_limits<float>::max()) {
   // A branch-free pass (vectorises; this runs on every encode and decode): for non-negative
   // floats the bit patterns order as the values, and NaN/inf lie above every finite bound.
+  // Large arrays on several threads (outside a parallel region): the fitter validates each of
+  // its candidates, whole assets of hundreds of megabytes.
   const uint32_t limit = std::bit_cast<uint32_t>(max_abs);
+  const float* data = values.data();
+  const auto count = static_cast<int64_t>(values.size());
   uint32_t bad = 0;
-  for (float v : values) bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(v) & 0x7FFFFFFFu) > limit);
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static) reduction(| : bad) if (count >= (int64_t{1} << 20) && !omp_in_parallel())
+#endif
+  for (int64_t i = 0; i < count; ++i)
+    bad |= static_cast<uint32_t>((std::bit_cast<uint32_t>(data[i]) & 0x7FFFFFFFu) > limit);
   if (bad == 0) return Status::Ok();
   for (size_t i = 0; i < values.size(); ++i) {
     if (!std::isfinite(values[i])) {

@@ -113,6 +113,36 @@ Asset SubsetGaussians(const Asset& asset, const std::vector<uint8_t>& keep) {
   return out;
 }
 
+Asset CopyAsset(const Asset& asset) {
+  Asset out;
+  out.metadata = asset.metadata;
+  out.deformation = asset.deformation;  // grids and MLP: megabytes
+  const Gaussians& g = asset.gaussians;
+  Gaussians& og = out.gaussians;
+  og.sh_degree = g.sh_degree;
+  std::vector<std::function<void()>> jobs = {[&] { og.positions = g.positions; },
+                                             [&] { og.rotations = g.rotations; },
+                                             [&] { og.log_scales = g.log_scales; },
+                                             [&] { og.opacity_logits = g.opacity_logits; },
+                                             [&] { og.sh = g.sh; },
+                                             [&] { og.time_windows = g.time_windows; }};
+  if (asset.textures) {
+    out.textures.emplace();
+    jobs.push_back([&] {
+      TexturePool& t = *out.textures;
+      t.heights = asset.textures->heights;
+      t.widths = asset.textures->widths;
+      t.axis_u = asset.textures->axis_u;
+      t.axis_v = asset.textures->axis_v;
+      t.offsets = asset.textures->offsets;
+    });
+    jobs.push_back([&] { out.textures->texels = asset.textures->texels; });
+  }
+  if (asset.stats) jobs.push_back([&] { out.stats = asset.stats; });
+  RunAll(jobs, g.size());
+  return out;
+}
+
 Status LowerShDegree(Asset* asset) {
   Gaussians& g = asset->gaussians;
   if (g.sh_degree == 0) return MakeError(StatusCode::kInvalidArgument, "SH degree is already 0");

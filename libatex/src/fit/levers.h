@@ -13,6 +13,10 @@ namespace atex::fit {
 // The Gaussians whose keep[i] is non-zero, with their textures and statistics.
 Asset SubsetGaussians(const Asset& asset, const std::vector<uint8_t>& keep);
 
+// A copy of `asset`, its large arrays copied on several threads (a fitter candidate copies a
+// whole asset of hundreds of megabytes).
+Asset CopyAsset(const Asset& asset);
+
 // SH degree d → d − 1 (coefficients of band d dropped; the deformation field's SH
 // head, when on, loses the matching outputs). kInvalidArgument at degree 0.
 Status LowerShDegree(Asset* asset);

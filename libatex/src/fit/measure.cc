@@ -4,6 +4,7 @@
 #include <numeric>
 
 #include "atex/train/trainer.h"
+#include "container/read_back.h"
 #include "cpu_probes.h"
 
 namespace atex::fit::internal {
@@ -23,7 +24,9 @@ Measurer::~Measurer() = default;
 
 StatusOr<Candidate> Measurer::Encode(StateRef state) {
   Stopwatch clock;
-  auto bytes = EncodeAsset(state.asset, state.write, chunks_);
+  // The file's exact size: its chunks are encoded (unchanged ones come from the cache) but
+  // not assembled into a file that nothing reads.
+  auto bytes = EncodedAssetSize(state.asset, state.write, chunks_);
   const double encode_seconds = clock.Lap();
   const auto count = [&](double decode_seconds) {
     std::lock_guard<std::mutex> lock(timing_mutex_);
@@ -34,17 +37,25 @@ StatusOr<Candidate> Measurer::Encode(StateRef state) {
     count(0);
     return bytes.status();
   }
+  Candidate c;
+  c.measured.bytes = *bytes;
+  // What a reader gets, computed from the values (container/read_back.h) rather than decoded
+  // from the file: the same bits, without decompressing every stream of every candidate.
+  auto decoded = container::DecodedAsWritten(state.asset, state.write, /*read_stats=*/false);
+  if (decoded.status().code() == StatusCode::kUnsupported) decoded = EncodeAndDecode(state);
+  count(clock.Lap());
+  if (!decoded.ok()) return decoded.status();
+  c.decoded = std::move(decoded).value();
+  return c;
+}
+
+StatusOr<Asset> Measurer::EncodeAndDecode(StateRef state) {
+  ATEX_ASSIGN_OR_RETURN(const std::vector<uint8_t> file, EncodeAsset(state.asset, state.write, chunks_));
   ReadOptions read;
   read.read_stats = false;
   // The bytes were encoded from checked values a moment ago; their CRCs protect nothing here.
   read.verify_checksums = false;
-  Candidate c;
-  auto decoded = DecodeAsset(bytes->data(), bytes->size(), read, &decoded_chunks_);
-  count(clock.Lap());
-  if (!decoded.ok()) return decoded.status();
-  c.decoded = std::move(decoded).value();
-  c.measured.bytes = bytes->size();
-  return c;
+  return DecodeAsset(file.data(), file.size(), read);
 }
 
 StatusOr<double> Measurer::Distortion(const Candidate& candidate, const CandidateMap& map,

@@ -1,9 +1,9 @@
 // The fitter's measurements of states (plan.cc): exact file bytes and probe distortion.
 // Not part of the public API.
 //
-// Every state is encoded (exact bytes; unchanged chunks come from the cache) and decoded
-// (exact stored values; unchanged streams come from a cache too). On a GPU backend the
-// decoded asset is rendered in full. On the CPU the probes are rendered incrementally against
+// Every state is encoded (exact bytes; unchanged chunks come from the cache) and read back
+// (the exact values a reader gets, computed from the state's values: container/read_back.h).
+// On a GPU backend the decoded asset is rendered in full. On the CPU the probes are rendered incrementally against
 // the current state (incremental_probes.h): a candidate projects and composites only what its
 // move changed.
 //
@@ -94,7 +94,7 @@ class Measurer {
   // come back as they are (kOutOfRange: a stream the encoding cannot hold). The caller
   // counts it in MeasureTiming::measurements (a prepared candidate may go unused).
   StatusOr<Candidate> Measure(StateRef next, const Move& move);
-  // The CPU part of a measurement: encode, decode and (on the CPU path) which Gaussians the
+  // The CPU part of a measurement: encode, read back and (on the CPU path) which Gaussians the
   // candidate changes. Several may run at once (BuildPlan prepares a state's proposals in
   // parallel); none may run during Start, nor during Score or Take unless
   // PreparesBesideScores().
@@ -110,10 +110,11 @@ class Measurer {
   StatusOr<double> Distortion(const Candidate& candidate, const CandidateMap& map,
                               std::shared_ptr<const IncrementalProbes::Pending>* pending);
 
+  // What DecodedAsWritten does not model (Draco positions): the file, encoded and decoded.
+  StatusOr<Asset> EncodeAndDecode(StateRef state);
+
   ProbeRenderer* renderer_;
   EncodeCache* chunks_;
-  // Most candidates decode to the current state's values but for one or two streams.
-  DecodeCache decoded_chunks_;
   MeasureTiming* timing_;
   std::mutex timing_mutex_;  // Prepare's updates of timing_ (Score and Take write other fields)
   PruneMeasure prune_;

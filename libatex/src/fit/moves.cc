@@ -107,7 +107,11 @@ StatusOr<State> AppliedTo(const State& from, const Move& move, const std::vector
     next.memo = from.memo;
     return next;
   }
-  State next = from;
+  State next;
+  next.asset = CopyAsset(from.asset);
+  next.write = from.write;
+  next.kept = from.kept;
+  next.memo = from.memo;
   ATEX_RETURN_IF_ERROR(ApplyMove(move, prune_order, &next.asset, &next.write, &next.kept, min_grid_resolution,
                                  next.memo.get()));
   return next;
