@@ -2,37 +2,122 @@
 // encodes and asset_reader.cc decodes each chunk.
 #include "container/read_back.h"
 
+#include <functional>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 #include "container/attribute_stream.h"
 #include "container/chunks.h"
 
 namespace atex::container {
-namespace {
 
-// A stream of `rows` x `components` read back into a new array.
-StatusOr<std::vector<float>> ReadBack(const std::vector<float>& values, uint64_t rows, uint32_t components,
-                                      ScalarEncoding encoding, const char* what) {
-  if (encoding == ScalarEncoding::kFloat32) return values;  // stored exactly
-  std::vector<float> out(values.size());
-  ATEX_RETURN_IF_ERROR(
-      ReadBackStream(values.data(), components, rows, components, encoding, out.data(), components, what));
-  return out;
+ReadBackCache::Values ReadBackCache::Find(int stream, const Fingerprint& key) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (auto it = entries_.begin(); it != entries_.end(); ++it) {
+    if (it->stream == stream && it->key == key) {
+      entries_.splice(entries_.begin(), entries_, it);
+      ++hits_;
+      return entries_.front().values;
+    }
+  }
+  ++misses_;
+  return nullptr;
 }
 
-Status ReadBackGaussians(const Gaussians& g, const WriteOptions& o, Gaussians* out) {
+void ReadBackCache::Add(int stream, const Fingerprint& key, Values values) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  entries_.push_front({stream, key, std::move(values)});
+  size_t seen = 0;
+  for (auto it = entries_.begin(); it != entries_.end();) {
+    if (it->stream == stream && ++seen > entries_per_stream_) {
+      it = entries_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+namespace {
+
+// The streams a cache keeps apart.
+enum Stream : int { kPositions, kRotations, kLogScales, kOpacities, kSh, kTexels };
+
+// A fingerprint of `values` and what their read back depends on (`tags`): blocks hashed on
+// several threads for long arrays, then the blocks' fingerprints in order.
+Fingerprint KeyOf(const std::vector<float>& values, std::initializer_list<uint64_t> tags) {
+  const size_t n = values.size();
+  const int64_t blocks = n >= (size_t{1} << 20) ? 64 : 1;
+  std::vector<Fingerprint> parts(static_cast<size_t>(blocks));
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static) if (blocks > 1 && !omp_in_parallel())
+#endif
+  for (int64_t b = 0; b < blocks; ++b) {
+    const size_t begin = n * static_cast<size_t>(b) / static_cast<size_t>(blocks);
+    const size_t end = n * static_cast<size_t>(b + 1) / static_cast<size_t>(blocks);
+    parts[static_cast<size_t>(b)] =
+        FingerprintBuilder().Add(values.data() + begin, (end - begin) * sizeof(float)).Finish();
+  }
+  FingerprintBuilder key;
+  for (uint64_t tag : tags) key.AddValue(tag);
+  key.AddValue(uint64_t{n});
+  for (const Fingerprint& part : parts) key.AddValue(part);
+  return key.Finish();
+}
+
+// `make`'s values, or the cache's copy of them for the same key.
+StatusOr<std::vector<float>> Cached(ReadBackCache* cache, int stream, const Fingerprint& key,
+                                    const std::function<StatusOr<std::vector<float>>()>& make) {
+  if (cache == nullptr) return make();
+  if (ReadBackCache::Values hit = cache->Find(stream, key)) return *hit;
+  ATEX_ASSIGN_OR_RETURN(std::vector<float> values, make());
+  auto shared = std::make_shared<const std::vector<float>>(std::move(values));
+  cache->Add(stream, key, shared);
+  return *shared;
+}
+
+uint64_t Tag(ScalarEncoding e) { return static_cast<uint64_t>(e); }
+
+// A stream of `rows` x `components` read back into a new array (through the cache when not f32).
+StatusOr<std::vector<float>> ReadBack(const std::vector<float>& values, uint64_t rows, uint32_t components,
+                                      ScalarEncoding encoding, const char* what, ReadBackCache* cache, int stream) {
+  if (encoding == ScalarEncoding::kFloat32) return values;  // stored exactly
+  const auto make = [&]() -> StatusOr<std::vector<float>> {
+    std::vector<float> out(values.size());
+    ATEX_RETURN_IF_ERROR(
+        ReadBackStream(values.data(), components, rows, components, encoding, out.data(), components, what));
+    return out;
+  };
+  if (cache == nullptr) return make();
+  return Cached(cache, stream, KeyOf(values, {Tag(encoding), rows, components}), make);
+}
+
+Status ReadBackGaussians(const Gaussians& g, const WriteOptions& o, ReadBackCache* cache, Gaussians* out) {
   const uint64_t n = g.size();
   out->sh_degree = g.sh_degree;
-  ATEX_ASSIGN_OR_RETURN(out->positions, ReadBack(g.positions, n, 3, o.positions, "positions"));
-  ATEX_ASSIGN_OR_RETURN(out->rotations, ReadBack(g.rotations, n, 4, o.rotations, "rotations"));
-  ATEX_ASSIGN_OR_RETURN(out->log_scales, ReadBack(g.log_scales, n, 3, o.log_scales, "log_scales"));
-  ATEX_ASSIGN_OR_RETURN(out->opacity_logits, ReadBack(g.opacity_logits, n, 1, o.opacities, "opacity_logits"));
+  ATEX_ASSIGN_OR_RETURN(out->positions, ReadBack(g.positions, n, 3, o.positions, "positions", cache, kPositions));
+  ATEX_ASSIGN_OR_RETURN(out->rotations, ReadBack(g.rotations, n, 4, o.rotations, "rotations", cache, kRotations));
+  ATEX_ASSIGN_OR_RETURN(out->log_scales, ReadBack(g.log_scales, n, 3, o.log_scales, "log_scales", cache, kLogScales));
+  ATEX_ASSIGN_OR_RETURN(out->opacity_logits,
+                        ReadBack(g.opacity_logits, n, 1, o.opacities, "opacity_logits", cache, kOpacities));
   // sh [N][K][3] is stored as DC [N][3] and rest [N][K-1][3], each with its own encoding and
   // ranges: read back in place, as strided rows of one copy.
   const uint32_t k = static_cast<uint32_t>(g.sh_coeffs());
-  out->sh = g.sh;
-  ATEX_RETURN_IF_ERROR(ReadBackStream(out->sh.data(), k * 3, n, 3, o.sh_dc, out->sh.data(), k * 3, "sh_dc"));
-  if (k > 1) {
-    ATEX_RETURN_IF_ERROR(
-        ReadBackStream(out->sh.data() + 3, k * 3, n, 3 * (k - 1), o.sh_rest, out->sh.data() + 3, k * 3, "sh_rest"));
+  const auto make_sh = [&]() -> StatusOr<std::vector<float>> {
+    std::vector<float> sh = g.sh;
+    ATEX_RETURN_IF_ERROR(ReadBackStream(sh.data(), k * 3, n, 3, o.sh_dc, sh.data(), k * 3, "sh_dc"));
+    if (k > 1) {
+      ATEX_RETURN_IF_ERROR(
+          ReadBackStream(sh.data() + 3, k * 3, n, 3 * (k - 1), o.sh_rest, sh.data() + 3, k * 3, "sh_rest"));
+    }
+    return sh;
+  };
+  if (o.sh_dc == ScalarEncoding::kFloat32 && (k == 1 || o.sh_rest == ScalarEncoding::kFloat32)) {
+    out->sh = g.sh;  // stored exactly
+  } else if (cache == nullptr) {
+    ATEX_ASSIGN_OR_RETURN(out->sh, make_sh());
+  } else {
+    ATEX_ASSIGN_OR_RETURN(out->sh, Cached(cache, kSh, KeyOf(g.sh, {Tag(o.sh_dc), Tag(o.sh_rest), n, k}), make_sh));
   }
   out->time_windows = g.time_windows;  // f32 always
   return Status::Ok();
@@ -52,7 +137,8 @@ StatusOr<DeformationField> ReadBackDeformation(const DeformationField& d, const 
 
 }  // namespace
 
-StatusOr<Asset> DecodedAsWritten(const Asset& asset, const WriteOptions& options, bool read_stats) {
+StatusOr<Asset> DecodedAsWritten(const Asset& asset, const WriteOptions& options, bool read_stats,
+                                 ReadBackCache* cache) {
   ATEX_RETURN_IF_ERROR(CheckWriteOptions(options));
   ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
   if (options.draco_positions && asset.gaussians.size() > 0) {
@@ -62,7 +148,7 @@ StatusOr<Asset> DecodedAsWritten(const Asset& asset, const WriteOptions& options
     Asset out;
     ATEX_ASSIGN_OR_RETURN(const std::vector<uint8_t> meta, EncodeMeta(asset.metadata));
     ATEX_ASSIGN_OR_RETURN(out.metadata, DecodeMeta(meta.data(), meta.size()));
-    ATEX_RETURN_IF_ERROR(ReadBackGaussians(asset.gaussians, options, &out.gaussians));
+    ATEX_RETURN_IF_ERROR(ReadBackGaussians(asset.gaussians, options, cache, &out.gaussians));
     if (asset.textures) {
       const TexturePool& t = *asset.textures;
       TexturePool& pool = out.textures.emplace();
@@ -71,7 +157,8 @@ StatusOr<Asset> DecodedAsWritten(const Asset& asset, const WriteOptions& options
       pool.axis_u = t.axis_u;
       pool.axis_v = t.axis_v;
       pool.offsets = t.offsets;
-      ATEX_ASSIGN_OR_RETURN(pool.texels, ReadBack(t.texels, t.texel_count(), kTexelChannels, options.texels, "texels"));
+      ATEX_ASSIGN_OR_RETURN(
+          pool.texels, ReadBack(t.texels, t.texel_count(), kTexelChannels, options.texels, "texels", cache, kTexels));
     }
     if (asset.deformation) {
       ATEX_ASSIGN_OR_RETURN(out.deformation, ReadBackDeformation(*asset.deformation, options));

@@ -142,6 +142,32 @@ TEST(ReadBack, RefusesWhatEncodeAssetRefuses) {
   EXPECT_EQ(DecodedAsWritten(valid, draco, false).status().code(), expected);
 }
 
+// Through a cache, across assets that change one stream at a time and encodings that change:
+// the same bits as the decode, and the unchanged streams come from the cache.
+TEST(ReadBack, ACacheGivesTheSameBitsAndHitsUnchangedStreams) {
+  container::ReadBackCache cache(2);
+  Asset asset = Sample(9, 3000, 3, SyntheticTextures::kMixed, true);
+  for (int c = 0; c < 12; ++c) {
+    const WriteOptions w = Mix(c % 5);
+    if (c % 3 == 1) asset.gaussians.sh[c] += 0.5f;
+    if (c % 3 == 2) asset.textures->texels[c] -= 0.25f;
+    const auto file = EncodeAsset(asset, w);
+    ASSERT_TRUE(file.ok());
+    ReadOptions read;
+    read.read_stats = false;
+    const auto decoded = DecodeAsset(file->data(), file->size(), read);
+    const uint64_t hits = cache.hits();
+    const auto cached = DecodedAsWritten(asset, w, false, &cache);
+    ASSERT_TRUE(decoded.ok() && cached.ok());
+    ExpectSameBits(*decoded, *cached, "case " + std::to_string(c));
+    const auto again = DecodedAsWritten(asset, w, false, &cache);  // nothing changed
+    ASSERT_TRUE(again.ok());
+    ExpectSameBits(*decoded, *again, "again " + std::to_string(c));
+    EXPECT_EQ(cache.misses() + cache.hits() > hits, true);
+  }
+  EXPECT_GT(cache.hits(), 12u);
+}
+
 // StreamRange on several threads finds what one pass in row order finds, bit for bit.
 TEST(ReadBack, StreamRangeIsTheFirstExtremeInRowOrder) {
   const uint64_t rows = 300000;

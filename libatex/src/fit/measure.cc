@@ -4,7 +4,6 @@
 #include <numeric>
 
 #include "atex/train/trainer.h"
-#include "container/read_back.h"
 #include "cpu_probes.h"
 
 namespace atex::fit::internal {
@@ -41,7 +40,7 @@ StatusOr<Candidate> Measurer::Encode(StateRef state) {
   c.measured.bytes = *bytes;
   // What a reader gets, computed from the values (container/read_back.h) rather than decoded
   // from the file: the same bits, without decompressing every stream of every candidate.
-  auto decoded = container::DecodedAsWritten(state.asset, state.write, /*read_stats=*/false);
+  auto decoded = container::DecodedAsWritten(state.asset, state.write, /*read_stats=*/false, &read_back_);
   if (decoded.status().code() == StatusCode::kUnsupported) decoded = EncodeAndDecode(state);
   count(clock.Lap());
   if (!decoded.ok()) return decoded.status();

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "atex/fit.h"
+#include "container/read_back.h"
 #include "cpu_probes.h"
 #include "incremental_probes.h"
 #include "plan_state.h"
@@ -115,6 +116,8 @@ class Measurer {
 
   ProbeRenderer* renderer_;
   EncodeCache* chunks_;
+  // A candidate changes one or two streams: the others' read backs are copies.
+  container::ReadBackCache read_back_;
   MeasureTiming* timing_;
   std::mutex timing_mutex_;  // Prepare's updates of timing_ (Score and Take write other fields)
   PruneMeasure prune_;
