@@ -51,7 +51,7 @@ namespace {
 
 // q = clamp(floor((v - lo) / (hi - lo) · lmax + 0.5), 0, lmax) in binary64; 0 where hi = lo
 // (range = f64(hi) - f64(lo), top = lmax). The one definition of §6's quantisation, shared by
-// the encoder and ReadBackStream. For 0 <= t < 2^62 the floor is the truncation (cheaper than
+// the encoder and ReadBackStream. For 0 <= t < 4e18 the floor is the truncation (cheaper than
 // floor without SSE4.1), which is every value within [lo, hi].
 template <typename T>
 inline T Quantise(float value, double low, double range, double top) {
