@@ -434,6 +434,8 @@ StatusOr<std::vector<uint8_t>> EncodeAsset(const Asset& asset, const WriteOption
   } catch (const std::bad_alloc&) {
     return MakeError(StatusCode::kLimitExceeded, "out of memory while laying out an asset of ", asset.gaussians.size(),
                      " Gaussians");
+  } catch (const std::exception& e) {
+    return MakeError(StatusCode::kInternal, "EncodeAsset: ", e.what());
   }
 }
 

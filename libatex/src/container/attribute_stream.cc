@@ -1,9 +1,9 @@
 #include "container/attribute_stream.h"
 
 #include <algorithm>
-#include <atomic>
 #include <bit>
 #include <cmath>
+#include <mutex>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -176,7 +176,10 @@ Status ReadBackStream(const float* in, size_t in_stride, uint64_t rows, uint32_t
     }
   }
   const double top = IsQuantised(encoding) ? QuantMax(encoding) : 0.0;
-  std::atomic<uint64_t> overflow_at{UINT64_MAX};  // the first value f16 cannot hold
+  // The first value f16 cannot hold, and the value (`out` may be `in`: it is overwritten).
+  std::mutex overflow_mutex;
+  uint64_t overflow_at = UINT64_MAX;
+  float overflow_value = 0;
   // One loop per encoding, so that the encoding's test is not inside it.
   const auto each_value = [&](auto value_of) {
     ForRowBlocks(rows, RowBlocks(rows, rows * components), [&](int64_t, uint64_t begin, uint64_t end) {
@@ -194,9 +197,10 @@ Status ReadBackStream(const float* in, size_t in_stride, uint64_t rows, uint32_t
         bool overflow = false;
         const uint16_t h = FloatToHalf(v, &overflow);
         if (overflow) {
-          const uint64_t here = r * components + c;
-          uint64_t at = overflow_at.load();
-          while (here < at && !overflow_at.compare_exchange_weak(at, here)) {
+          std::lock_guard<std::mutex> lock(overflow_mutex);
+          if (r * components + c < overflow_at) {
+            overflow_at = r * components + c;
+            overflow_value = v;
           }
         }
         return HalfToFloat(h);
@@ -233,10 +237,9 @@ Status ReadBackStream(const float* in, size_t in_stride, uint64_t rows, uint32_t
       break;
     }
   }
-  if (const uint64_t at = overflow_at.load(); at != UINT64_MAX) {
-    const float value = in[(at / components) * in_stride + at % components];
-    return MakeError(StatusCode::kOutOfRange, what, " row ", at / components, " component ", at % components, " = ",
-                     value, " does not fit float16 (|v| < 65520)");
+  if (overflow_at != UINT64_MAX) {
+    return MakeError(StatusCode::kOutOfRange, what, " row ", overflow_at / components, " component ",
+                     overflow_at % components, " = ", overflow_value, " does not fit float16 (|v| < 65520)");
   }
   return Status::Ok();
 }

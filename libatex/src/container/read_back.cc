@@ -27,6 +27,9 @@ ReadBackCache::Values ReadBackCache::Find(int stream, const Fingerprint& key) {
 
 void ReadBackCache::Add(int stream, const Fingerprint& key, Values values) {
   std::lock_guard<std::mutex> lock(mutex_);
+  for (const Entry& e : entries_) {
+    if (e.stream == stream && e.key == key) return;  // two candidates missed it at once
+  }
   entries_.push_front({stream, key, std::move(values)});
   size_t seen = 0;
   for (auto it = entries_.begin(); it != entries_.end();) {
@@ -168,6 +171,8 @@ StatusOr<Asset> DecodedAsWritten(const Asset& asset, const WriteOptions& options
   } catch (const std::bad_alloc&) {
     return MakeError(StatusCode::kLimitExceeded, "out of memory reading back an asset of ", asset.gaussians.size(),
                      " Gaussians");
+  } catch (const std::exception& e) {
+    return MakeError(StatusCode::kInternal, "DecodedAsWritten: ", e.what());
   }
 }
 

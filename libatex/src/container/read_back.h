@@ -45,7 +45,8 @@ class ReadBackCache {
 // Returns, bit for bit, the asset that DecodeAsset(EncodeAsset(asset, options), read) returns
 // when read.read_stats == read_stats: every attribute stream as its encoding rounds it
 // (ReadBackStream), the metadata and deformation configuration through their chunks' own
-// round trip, the rest copied. Large streams use several threads.
+// round trip, the rest copied. Large streams use several threads. Unlike DecodeAsset it has
+// no file, so ReadOptions' limits on decoded size and expansion do not apply.
 // Errors: EncodeAsset's for an invalid asset or options (ValidateAsset; kOutOfRange for a value
 // f16 cannot hold); kUnsupported for options it does not model (Draco positions): the caller
 // then encodes and decodes.

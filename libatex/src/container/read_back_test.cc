@@ -125,6 +125,16 @@ TEST(ReadBack, AFloat16OverflowIsTheEncodersError) {
   EXPECT_EQ(read_back.status().code(), StatusCode::kOutOfRange);
   EXPECT_EQ(read_back.status().message(), encoded.status().message());
   EXPECT_EQ(EncodedAssetSize(asset, w).status().code(), encoded.status().code());
+  // SH is read back in place: the message still names the value, not its overwritten f16.
+  Asset sh = Sample(3, 50, 2, SyntheticTextures::kNone, false);
+  sh.gaussians.sh[9 * 27 + 5] = -80000.0f;  // Gaussian 9, a rest coefficient
+  WriteOptions rest;
+  rest.sh_rest = ScalarEncoding::kFloat16;
+  const auto encoded_sh = EncodeAsset(sh, rest);
+  const auto read_back_sh = DecodedAsWritten(sh, rest, false);
+  ASSERT_FALSE(encoded_sh.ok());
+  ASSERT_FALSE(read_back_sh.ok());
+  EXPECT_EQ(read_back_sh.status().message(), encoded_sh.status().message());
 }
 
 TEST(ReadBack, RefusesWhatEncodeAssetRefuses) {

@@ -335,6 +335,22 @@ TEST(Plan, NoUnitOfSlackLeftBelowAnIndivisibleLastMove) {
   EXPECT_GE(refilled, 3) << "too few budgets end on an indivisible move to test anything";
 }
 
+// Draco positions are not read back (container/read_back.h): their candidates are encoded and
+// decoded, and the plan and its application work as with any other write options.
+TEST(Plan, DracoPositionsAreMeasuredThroughTheirFile) {
+  if (!HaveDracoCodec()) GTEST_SKIP() << "this build has no Draco";
+  PlanFixture f = MakePlan(container::SyntheticTextures::kMixed, 29,
+                           [](PlanOptions* o) { o->write.draco_positions = true; });
+  ASSERT_FALSE(f.plan.moves.empty());
+  WriteOptions draco = f.write;
+  draco.draco_positions = true;
+  const uint64_t budget = f.plan.moves.back().bytes_after;
+  auto fitted = ApplyPlan(f.asset, f.plan, draco, budget);
+  ASSERT_TRUE(fitted.ok()) << fitted.status().ToString();
+  EXPECT_LE(fitted->bytes.size(), budget);
+  EXPECT_TRUE(DecodeAsset(fitted->bytes.data(), fitted->bytes.size(), {}).ok());
+}
+
 TEST(Plan, BudgetBelowTheMinimumIsNamed) {
   Asset a = SmallAsset(container::SyntheticTextures::kMixed, 23);
   WriteOptions w;

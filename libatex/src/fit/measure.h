@@ -112,7 +112,7 @@ class Measurer {
                               std::shared_ptr<const IncrementalProbes::Pending>* pending);
 
   // What DecodedAsWritten does not model (Draco positions): the file, encoded and decoded.
-  StatusOr<Asset> EncodeAndDecode(StateRef state);
+  StatusOr<Candidate> EncodeAndDecode(StateRef state);
 
   ProbeRenderer* renderer_;
   EncodeCache* chunks_;
