@@ -287,7 +287,9 @@ struct Fitted {
 // moves before it are undone, latest first, to spend the slack again: a divisible one's count
 // is searched the same way (the refill stops where one is only partly undone
 // or needed whole: the budget binds), an indivisible one is undone whole when the output
-// without it still fits. When even the whole plan does not fit (its greedy search can stop a
+// without it still fits. The searches and the refill stop once fewer than budget_bytes / 1024
+// bytes are left unused: near the boundary the sizes are mostly compression noise, and each
+// trial encodes the whole file. When even the whole plan does not fit (its greedy search can stop a
 // few bytes above MinimumBytes: removing one more Gaussian may not shrink the compressed
 // file), the output is the smallest asset of the plan's levers, exactly as MinimumBytes
 // builds it, so every budget that CheckBudget accepts is met. Fails with kOutOfRange only

@@ -5,6 +5,7 @@
 
 #include "atex/fit.h"
 #include "count_search.h"
+#include "levers.h"
 #include "plan_state.h"
 
 namespace atex::fit {
@@ -28,12 +29,12 @@ StatusOr<State> ApplyRange(const State& start, const Plan& plan, const std::vect
     ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &state->asset, &state->write, &state->kept,
                                    plan.min_grid_resolution, state->memo.get()));
   }
-  if (!state) return start;
+  if (!state) return CopyState(start);
   return std::move(*state);
 }
 
 State InitialState(const Asset& asset, const WriteOptions& write) {
-  State s{asset, write, {}, std::make_shared<TextureShrinkMemo>()};
+  State s{CopyAsset(asset), write, {}, std::make_shared<TextureShrinkMemo>()};
   s.kept.resize(asset.gaussians.size());
   std::iota(s.kept.begin(), s.kept.end(), 0u);
   return s;
@@ -72,13 +73,14 @@ StatusOr<Fitted> SmallestFallback(const Asset& asset, const Plan& plan, const Wr
 
 }  // namespace internal
 
+using internal::CopyState;
 using internal::FinishOutput;
 using internal::InitialState;
 using internal::PlanTail;
+using internal::RefillSlack;
 using internal::SmallestFallback;
 using internal::State;
 using internal::Stopwatch;
-using internal::RefillSlack;
 using internal::TrialEncoder;
 
 StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget_bytes) {
@@ -120,13 +122,13 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
     std::optional<State> checkpoint;
     const State* kept = tail != nullptr ? tail->After(j) : nullptr;
     if (kept != nullptr) {
-      state = *kept;
-      if (const State* c = checkpoint_index < j ? tail->After(checkpoint_index) : nullptr) checkpoint = *c;
+      state = CopyState(*kept);
+      if (const State* c = checkpoint_index < j ? tail->After(checkpoint_index) : nullptr) checkpoint = CopyState(*c);
       out.moves.assign(plan.moves.begin(), plan.moves.begin() + static_cast<std::ptrdiff_t>(j));
     } else {
       if (tail != nullptr) state = initial_state();
       for (size_t k = 0; k < j; ++k) {
-        if (k == checkpoint_index) checkpoint = state;
+        if (k == checkpoint_index) checkpoint = CopyState(state);
         ATEX_RETURN_IF_ERROR(ApplyMove(plan.moves[k], plan.prune_order, &state.asset, &state.write, &state.kept,
                                        plan.min_grid_resolution, state.memo.get()));
         out.moves.push_back(plan.moves[k]);
@@ -143,9 +145,9 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
         ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, encode(trial));
         return static_cast<uint64_t>(trial_bytes.size());
       };
-      ATEX_ASSIGN_OR_RETURN(last.count,
-                            internal::SmallestFittingCount(0, before, last.count, last.bytes_after, budget_bytes,
-                                                           bytes_at));
+      ATEX_ASSIGN_OR_RETURN(
+          last.count, internal::SmallestFittingCount(0, before, last.count, last.bytes_after, budget_bytes, bytes_at,
+                                                     nullptr, internal::EnoughSlack(budget_bytes)));
     }
     ATEX_RETURN_IF_ERROR(ApplyMove(last, plan.prune_order, &state.asset, &state.write, &state.kept,
                                    plan.min_grid_resolution, state.memo.get()));

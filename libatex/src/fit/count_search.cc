@@ -6,9 +6,9 @@
 
 namespace atex::fit::internal {
 
-StatusOr<uint64_t> SmallestFittingCount(uint64_t lo, uint64_t lo_bytes, uint64_t hi, uint64_t hi_bytes,
-                                        uint64_t budget, const std::function<StatusOr<uint64_t>(uint64_t)>& bytes_at,
-                                        int* trials) {
+StatusOr<uint64_t> SmallestFittingCount(uint64_t lo, uint64_t lo_bytes, uint64_t hi, uint64_t hi_bytes, uint64_t budget,
+                                        const std::function<StatusOr<uint64_t>(uint64_t)>& bytes_at, int* trials,
+                                        uint64_t enough_slack) {
   if (!(lo < hi && lo_bytes > budget && hi_bytes <= budget)) {
     return MakeError(StatusCode::kInternal, "count search: the ends (", lo, ": ", lo_bytes, " bytes, ", hi, ": ",
                      hi_bytes, " bytes) do not bracket the budget of ", budget);
@@ -17,7 +17,7 @@ StatusOr<uint64_t> SmallestFittingCount(uint64_t lo, uint64_t lo_bytes, uint64_t
   // every two trials at least halve it: at most about twice a bisection's trials.
   bool bisect = false;
   int count = 0;
-  while (hi - lo > 1) {
+  while (hi - lo > 1 && budget - hi_bytes >= enough_slack) {
     const uint64_t width = hi - lo;
     uint64_t next = lo + width / 2;
     if (!bisect) {

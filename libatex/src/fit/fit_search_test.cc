@@ -89,6 +89,47 @@ TEST(CountSearch, SizesThatRiseLocallyStillGiveAFittingCountWhosePredecessorDoes
   }
 }
 
+TEST(CountSearch, StopsOnceTheSlackLeftIsBelowEnough) {
+  // Near-linear sizes with compression noise, as in FindsTheBoundary...: with enough_slack the
+  // answer fits and leaves less than that unused (or is the exact answer), in fewer trials.
+  std::mt19937_64 random(11);
+  int exact_trials = 0, early_trials = 0, stopped_early = 0;
+  for (int round = 0; round < 200; ++round) {
+    const uint64_t hi = 1000 + random() % 40000;
+    std::vector<uint64_t> sizes(hi + 1);
+    uint64_t size = 40'000'000;
+    for (uint64_t c = 0; c <= hi; ++c) {
+      sizes[c] = size - std::min<uint64_t>(size, 55 * c) + random() % 600;  // 55 bytes a unit, noisy
+    }
+    sizes[hi] = std::min(sizes[hi], sizes[hi - 1]);
+    const uint64_t budget = sizes[hi] + random() % (sizes[0] - sizes[hi] - 600);
+    const auto bytes_at = [&](uint64_t c) -> StatusOr<uint64_t> { return sizes[c]; };
+    const uint64_t enough = budget / 1024;
+    int trials = 0;
+    auto exact = SmallestFittingCount(0, sizes[0], hi, sizes[hi], budget, bytes_at, &trials);
+    ASSERT_TRUE(exact.ok());
+    exact_trials += trials;
+    auto early = SmallestFittingCount(0, sizes[0], hi, sizes[hi], budget, bytes_at, &trials, enough);
+    ASSERT_TRUE(early.ok());
+    early_trials += trials;
+    ASSERT_LE(sizes[*early], budget) << round;
+    if (*early != *exact) {
+      ++stopped_early;
+      EXPECT_LT(budget - sizes[*early], enough) << round;
+    }
+  }
+  EXPECT_GT(stopped_early, 0) << "no round stopped early: the test tests nothing";
+  EXPECT_LT(early_trials, exact_trials);
+  // hi itself within enough of the budget: nothing is tried.
+  const auto never = [](uint64_t) -> StatusOr<uint64_t> {
+    ADD_FAILURE() << "tried a count";
+    return uint64_t{0};
+  };
+  auto at_hi = SmallestFittingCount(0, 2000, 100, 1000, 1005, never, nullptr, 6);
+  ASSERT_TRUE(at_hi.ok());
+  EXPECT_EQ(*at_hi, 100u);
+}
+
 TEST(CountSearch, EndsThatDoNotBracketTheBudgetAreABugNotAFit) {
   const auto never = [](uint64_t) -> StatusOr<uint64_t> { return uint64_t{0}; };
   EXPECT_EQ(SmallestFittingCount(0, 100, 10, 90, 80, never).status().code(), StatusCode::kInternal);

@@ -96,6 +96,8 @@ StatusOr<Asset> KeepMostImportant(const Asset& asset, const std::vector<uint32_t
 
 namespace internal {
 
+State CopyState(const State& state) { return State{CopyAsset(state.asset), state.write, state.kept, state.memo}; }
+
 StatusOr<State> AppliedTo(const State& from, const Move& move, const std::vector<uint32_t>& prune_order,
                           int min_grid_resolution) {
   if (move.lever == Lever::kPrune) {
@@ -107,11 +109,7 @@ StatusOr<State> AppliedTo(const State& from, const Move& move, const std::vector
     next.memo = from.memo;
     return next;
   }
-  State next;
-  next.asset = CopyAsset(from.asset);
-  next.write = from.write;
-  next.kept = from.kept;
-  next.memo = from.memo;
+  State next = CopyState(from);
   ATEX_RETURN_IF_ERROR(ApplyMove(move, prune_order, &next.asset, &next.write, &next.kept, min_grid_resolution,
                                  next.memo.get()));
   return next;

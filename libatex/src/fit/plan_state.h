@@ -86,6 +86,10 @@ struct PlanTail {
 // the input index of each Gaussian kept. ApplyPlan falls back to it below the plan's end.
 StatusOr<State> SmallestState(const Asset& asset, const WriteOptions& write, int min_grid_resolution, LeverSet levers);
 
+// A copy of `state` whose arrays are copied on several threads (CopyAsset): a Panoptic state
+// is 150 MB.
+State CopyState(const State& state);
+
 // The state after `move` applied to `from` (ApplyMove), without copying first what the move
 // replaces: a prune gathers the Gaussians it keeps from `from` directly.
 StatusOr<State> AppliedTo(const State& from, const Move& move, const std::vector<uint32_t>& prune_order,

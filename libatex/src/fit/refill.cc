@@ -75,8 +75,8 @@ StatusOr<std::optional<Refill>> SmallestFittingRefill(const State& prefix, const
     if (size <= budget) best = Refill{count, std::move(trial), std::move(trial_bytes)};
     return size;
   };
-  ATEX_ASSIGN_OR_RETURN(const uint64_t count, SmallestFittingCount(0, without_bytes.size(), moves[k].count,
-                                                                     full_bytes, budget, bytes_at));
+  ATEX_ASSIGN_OR_RETURN(const uint64_t count, SmallestFittingCount(0, without_bytes.size(), moves[k].count, full_bytes,
+                                                                   budget, bytes_at, nullptr, EnoughSlack(budget)));
   if (count == moves[k].count) return std::optional<Refill>();
   return best;
 }
@@ -132,6 +132,8 @@ size_t FirstRefillPrefix(const std::vector<Move>& moves, size_t end) {
 // the budget binds there and the refill stops. An indivisible move (an encoding, the SH
 // degree, the grid) is undone whole when the output without it still fits and grows, else
 // skipped. Every state taken was encoded and fits, so the output stays within the budget.
+// The refill stops, and its count searches end, once fewer than EnoughSlack(budget) bytes
+// are left unused (count_search.h).
 Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
                    std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, TrialEncoder* encode,
                    std::optional<State> checkpoint, size_t checkpoint_index) {
@@ -145,6 +147,7 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
   // and one that is no encoding move stays, or was changed: either way the content differs).
   bool same_content = moves->back().lever == Lever::kEncoding;
   for (size_t k = moves->size() - 1; k-- > 0;) {  // every move before the last, latest first
+    if (budget - bytes->size() < EnoughSlack(budget)) break;  // spent as far as it is worth
     if ((*moves)[k].lever == Lever::kEncoding) {
       const uint64_t before = k == 0 ? plan.initial_bytes : (*moves)[k - 1].bytes_after;
       const uint64_t saved = before > (*moves)[k].bytes_after ? before - (*moves)[k].bytes_after : 0;
