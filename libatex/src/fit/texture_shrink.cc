@@ -260,7 +260,12 @@ StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count, TextureShrinkMem
   out.axis_v = pool.axis_v;
   out.RebuildOffsets();
   out.texels.resize(out.texel_count() * kTexelChannels);
-  for (size_t i = 0; i < n; ++i) {
+  // Independent copies into disjoint ranges: on several threads (a Panoptic pool is 70 MB).
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static) if (n > 4096)
+#endif
+  for (int64_t j = 0; j < static_cast<int64_t>(n); ++j) {
+    const size_t i = static_cast<size_t>(j);
     const float* src = texels_of(static_cast<uint32_t>(i));
     std::copy(src, src + static_cast<size_t>(out.heights[i]) * out.widths[i] * kTexelChannels,
               out.texels.begin() + static_cast<std::ptrdiff_t>(out.offsets[i] * kTexelChannels));
