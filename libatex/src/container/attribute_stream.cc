@@ -4,13 +4,11 @@
 #include <bit>
 #include <cmath>
 #include <mutex>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #include "container/byte_io.h"
 #include "container/format.h"
 #include "container/half.h"
+#include "container/row_blocks.h"
 
 namespace atex::container {
 namespace {
@@ -59,41 +57,6 @@ inline T Quantise(float value, double low, double range, double top) {
   const double t = (static_cast<double>(value) - low) / range * top + 0.5;
   const double whole = (t >= 0.0 && t < 4.0e18) ? static_cast<double>(static_cast<int64_t>(t)) : std::floor(t);
   return static_cast<T>(std::clamp(whole, 0.0, top));
-}
-
-// Blocks of rows for work on `values` values: 1 (no threads) below a quarter million.
-int64_t RowBlocks(uint64_t rows, uint64_t values) {
-  constexpr uint64_t kParallelValues = uint64_t{1} << 18;
-#ifdef _OPENMP
-  if (values >= kParallelValues && rows > 1) return static_cast<int64_t>(std::min<uint64_t>(rows, 64));
-#endif
-  (void)values;
-  return rows > 0 ? 1 : 0;
-}
-
-// Calls f(block, begin, end) for each of `blocks` blocks of [0, rows), which cover it in order,
-// on several threads when there are several blocks: a parallel region of its own, or, inside
-// one (the encoder's chunks run in one), tasks that the region's idle threads take. f must not
-// throw.
-template <typename F>
-void ForRowBlocks(uint64_t rows, int64_t blocks, F&& f) {
-  const auto block = [&](int64_t b) {
-    f(b, rows * static_cast<uint64_t>(b) / static_cast<uint64_t>(blocks),
-      rows * static_cast<uint64_t>(b + 1) / static_cast<uint64_t>(blocks));
-  };
-#ifdef _OPENMP
-  if (blocks > 1) {
-    if (omp_in_parallel()) {
-#pragma omp taskloop grainsize(1)
-      for (int64_t b = 0; b < blocks; ++b) block(b);
-    } else {
-#pragma omp parallel for schedule(static)
-      for (int64_t b = 0; b < blocks; ++b) block(b);
-    }
-    return;
-  }
-#endif
-  for (int64_t b = 0; b < blocks; ++b) block(b);
 }
 
 // The quantisation below, for values [rows][C]
