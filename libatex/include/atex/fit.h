@@ -279,6 +279,8 @@ struct Fitted {
   double trial_encode_seconds = 0;
   int refill_encodes = 0;
   double refill_encode_seconds = 0;
+  // The refill's time building the states it encodes: its prefixes, trial states and replay.
+  double refill_state_seconds = 0;
 };
 
 // Applies moves of `plan` in order until the encoded asset fits `budget_bytes`; the

@@ -160,11 +160,13 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
       Stopwatch refill_clock;
       const int encodes_before = encoder.count();
       const double encode_seconds_before = encoder.seconds();
+      const double build_seconds_before = encoder.build_seconds();
       ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes, &encoder,
                                        std::move(checkpoint), checkpoint_index));
       out.refill_seconds = refill_clock.Lap();
       out.refill_encodes = encoder.count() - encodes_before;
       out.refill_encode_seconds = encoder.seconds() - encode_seconds_before;
+      out.refill_state_seconds = encoder.build_seconds() - build_seconds_before;
     }
   }
   // The output itself is encoded without the cache, whose hits rest on content fingerprints

@@ -39,7 +39,8 @@ struct State {
 State InitialState(const Asset& asset, const WriteOptions& write);
 
 // The whole-file encodes of ApplyPlan and its refill (trials and replays), through one chunk
-// cache (most of them differ in a few chunks), counted and timed for the report.
+// cache (most of them differ in a few chunks), counted and timed for the report; and the time
+// spent building the states they encode (Build), apart.
 class TrialEncoder {
  public:
   StatusOr<std::vector<uint8_t>> operator()(const Asset& asset, const WriteOptions& write) {
@@ -49,13 +50,23 @@ class TrialEncoder {
     ++count_;
     return bytes;
   }
+  // Returns build() (a state to encode, or its status), timed into build_seconds().
+  template <typename Build>
+  auto Built(Build&& build) {
+    Stopwatch clock;
+    auto state = build();
+    build_seconds_ += clock.Lap();
+    return state;
+  }
   int count() const { return count_; }
   double seconds() const { return seconds_; }
+  double build_seconds() const { return build_seconds_; }
 
  private:
   EncodeCache cache_;
   int count_ = 0;
   double seconds_ = 0;
+  double build_seconds_ = 0;
 };
 
 // BuildPlan's states after some of its last moves (Plan::tail): `states[i]` is the state after

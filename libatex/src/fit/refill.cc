@@ -31,6 +31,12 @@ class PrefixStates {
       : asset_(asset), write_(write), plan_(plan), memo_(std::move(memo)), checkpoint_(std::move(checkpoint)),
         checkpoint_index_(checkpoint_index) {}
 
+  // Before() timed as a state build of `encode` (the report's refill_state_seconds).
+  StatusOr<State> Before(const std::vector<Move>& moves, size_t k, TrialEncoder* encode) {
+    return encode->Built([&] { return Before(moves, k); });
+  }
+
+ private:
   StatusOr<State> Before(const std::vector<Move>& moves, size_t k) {
     if (!checkpoint_ || checkpoint_index_ > k) {
       const size_t index = k > kStride ? k - kStride : 0;
@@ -43,7 +49,6 @@ class PrefixStates {
     return ApplyRange(*checkpoint_, plan_, moves, checkpoint_index_, k, moves.size(), 0);
   }
 
- private:
   static constexpr size_t kStride = 8;
   const Asset& asset_;
   const WriteOptions& write_;
@@ -62,14 +67,16 @@ StatusOr<std::optional<Refill>> SmallestFittingRefill(const State& prefix, const
                                                       const std::vector<Move>& moves, size_t k, uint64_t budget,
                                                       uint64_t full_bytes, TrialEncoder* encode) {
   // With a large slack the move is usually undone entirely: one trial instead of a search.
-  ATEX_ASSIGN_OR_RETURN(State without, ApplyRange(prefix, plan, moves, k, moves.size(), k, 0));
+  ATEX_ASSIGN_OR_RETURN(State without,
+                        encode->Built([&] { return ApplyRange(prefix, plan, moves, k, moves.size(), k, 0); }));
   ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> without_bytes, (*encode)(without.asset, without.write));
   if (without_bytes.size() <= budget) {
     return std::optional<Refill>(Refill{0, std::move(without), std::move(without_bytes)});
   }
   std::optional<Refill> best;  // the last fitting trial: the smallest count found to fit so far
   const auto bytes_at = [&](uint64_t count) -> StatusOr<uint64_t> {
-    ATEX_ASSIGN_OR_RETURN(State trial, ApplyRange(prefix, plan, moves, k, moves.size(), k, count));
+    ATEX_ASSIGN_OR_RETURN(State trial,
+                          encode->Built([&] { return ApplyRange(prefix, plan, moves, k, moves.size(), k, count); }));
     ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, (*encode)(trial.asset, trial.write));
     const uint64_t size = trial_bytes.size();
     if (size <= budget) best = Refill{count, std::move(trial), std::move(trial_bytes)};
@@ -160,10 +167,10 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
       continue;
     }
     same_content = false;
-    ATEX_ASSIGN_OR_RETURN(prefix, prefixes.Before(*moves, k));
+    ATEX_ASSIGN_OR_RETURN(prefix, prefixes.Before(*moves, k, encode));
     prefix_index = k;
     if (!(*moves)[k].divisible()) {
-      auto trial = ApplyRange(*prefix, plan, *moves, k, moves->size(), k, 0);
+      auto trial = encode->Built([&] { return ApplyRange(*prefix, plan, *moves, k, moves->size(), k, 0); });
       if (!trial.ok()) continue;  // the moves after it do not apply without it: keep it
       auto trial_bytes = (*encode)(trial->asset, trial->write);
       if (!trial_bytes.ok() || trial_bytes->size() > budget || trial_bytes->size() <= bytes->size()) continue;
@@ -196,11 +203,13 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
   if (prefix && prefix_index == *earliest_changed) {
     replay = std::move(*prefix);
   } else {
-    ATEX_ASSIGN_OR_RETURN(replay, prefixes.Before(*moves, *earliest_changed));
+    ATEX_ASSIGN_OR_RETURN(replay, prefixes.Before(*moves, *earliest_changed, encode));
   }
   for (size_t i = *earliest_changed; i + 1 < moves->size(); ++i) {
-    ATEX_RETURN_IF_ERROR(ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept,
-                                   plan.min_grid_resolution, replay.memo.get()));
+    ATEX_RETURN_IF_ERROR(encode->Built([&] {
+      return ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept,
+                       plan.min_grid_resolution, replay.memo.get());
+    }));
     ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> step_bytes, (*encode)(replay.asset, replay.write));
     (*moves)[i].bytes_after = step_bytes.size();
   }

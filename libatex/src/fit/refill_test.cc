@@ -37,6 +37,8 @@ TEST(Refill, EveryOutputIsItsMovesReplayedFromTheInput) {
       // every trial by arithmetic; no refill, no refill encodes).
       EXPECT_LE(fitted->refill_encodes, fitted->trial_encodes);
       EXPECT_LE(fitted->refill_encode_seconds, fitted->trial_encode_seconds);
+      // Its state builds and encodes are parts of the refill's time, apart from each other.
+      EXPECT_LE(fitted->refill_state_seconds + fitted->refill_encode_seconds, fitted->refill_seconds + 1e-9);
       if (fitted->refill_seconds == 0) {
         EXPECT_EQ(fitted->refill_encodes, 0) << "budget " << budget;
       }

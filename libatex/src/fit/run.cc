@@ -203,6 +203,7 @@ StatusOr<Fitted> Run::FitOnce(const Asset& start, const WriteOptions& start_writ
     timing["apply_plan_encode_seconds"] = fitted->trial_encode_seconds;
     timing["refill_encodes"] = fitted->refill_encodes;
     timing["refill_encode_seconds"] = fitted->refill_encode_seconds;
+    timing["refill_state_seconds"] = fitted->refill_state_seconds;
   }
   plan_timings_.push_back(std::move(timing));
   return fitted;
