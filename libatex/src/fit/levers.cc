@@ -90,8 +90,8 @@ Asset SubsetGaussians(const Asset& asset, const std::vector<uint8_t>& keep) {
     p->axis_v = SubsetRows(t->axis_v, n, kept);
     p->RebuildOffsets();
   }
-  // The outputs are allocated first (each on its own thread: zero-filling them is most of the
-  // cost of a copy), then filled block by block.
+  // The outputs are allocated first, each on its own thread (a vector's allocation zero-fills
+  // it), then filled block by block.
   std::vector<std::function<void()>> allocate = {[&] { out.deformation = asset.deformation; }};
   for (const Rows& r : rows) {
     allocate.push_back([&, r] {
