@@ -101,7 +101,6 @@ TEST(CountSearch, StopsOnceTheSlackLeftIsBelowEnough) {
     for (uint64_t c = 0; c <= hi; ++c) {
       sizes[c] = size - std::min<uint64_t>(size, 55 * c) + random() % 600;  // 55 bytes a unit, noisy
     }
-    sizes[hi] = std::min(sizes[hi], sizes[hi - 1]);
     const uint64_t budget = sizes[hi] + random() % (sizes[0] - sizes[hi] - 600);
     const auto bytes_at = [&](uint64_t c) -> StatusOr<uint64_t> { return sizes[c]; };
     const uint64_t enough = budget / 1024;

@@ -6,6 +6,7 @@
 #include <functional>
 
 #include "atex/deform.h"
+#include "container/row_blocks.h"
 
 namespace atex::fit {
 namespace {
@@ -69,7 +70,7 @@ Asset SubsetGaussians(const Asset& asset, const std::vector<uint8_t>& keep) {
   o.sh_degree = g.sh_degree;
   // The large per-Gaussian arrays: [n][width] in, [kept][width] out. They are gathered in
   // blocks of rows, every array of a block by one thread: a Panoptic prune gathers 60 MB of SH
-  // and 70 MB of texels, which took one thread each when each array was a single job.
+  // and 70 MB of texels, too much for one thread per array.
   struct Rows {
     const std::vector<float>* from;
     std::vector<float>* to;
@@ -113,28 +114,25 @@ Asset SubsetGaussians(const Asset& asset, const std::vector<uint8_t>& keep) {
     });
   }
   RunAll(allocate, n);
-  constexpr size_t kBlock = 8192;
-  std::vector<std::function<void()>> gather;
-  for (size_t begin = 0; begin < kept.size(); begin += kBlock) {
-    gather.push_back([&, begin] {
-      const size_t end = std::min(kept.size(), begin + kBlock);
-      for (const Rows& r : rows) {
-        if (r.to->empty()) continue;
-        const size_t width = r.from->size() / n;
-        for (size_t j = begin; j < end; ++j) {
-          std::copy_n(r.from->data() + kept[j] * width, width, r.to->data() + j * width);
-        }
-      }
-      if (p == nullptr) return;
-      for (size_t j = begin; j < end; ++j) {
-        const size_t i = kept[j];
-        std::copy(t->texels.begin() + static_cast<std::ptrdiff_t>(t->offsets[i] * kTexelChannels),
-                  t->texels.begin() + static_cast<std::ptrdiff_t>(t->offsets[i + 1] * kTexelChannels),
-                  p->texels.begin() + static_cast<std::ptrdiff_t>(p->offsets[j] * kTexelChannels));
-      }
-    });
-  }
-  RunAll(gather, n);
+  uint64_t values = p != nullptr ? p->texels.size() : 0;  // floats gathered
+  for (const Rows& r : rows) values += r.to->size();
+  container::ForRowBlocks(kept.size(), container::RowBlocks(kept.size(), values),
+                          [&](int64_t, uint64_t begin, uint64_t end) {
+                            for (const Rows& r : rows) {
+                              if (r.to->empty()) continue;
+                              const size_t width = r.from->size() / n;
+                              for (size_t j = begin; j < end; ++j) {
+                                std::copy_n(r.from->data() + kept[j] * width, width, r.to->data() + j * width);
+                              }
+                            }
+                            if (p == nullptr) return;
+                            for (size_t j = begin; j < end; ++j) {
+                              const size_t i = kept[j];
+                              std::copy_n(t->texels.data() + t->offsets[i] * kTexelChannels,
+                                          (t->offsets[i + 1] - t->offsets[i]) * kTexelChannels,
+                                          p->texels.data() + p->offsets[j] * kTexelChannels);
+                            }
+                          });
   return out;
 }
 

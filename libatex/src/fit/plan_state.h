@@ -40,7 +40,7 @@ State InitialState(const Asset& asset, const WriteOptions& write);
 
 // The whole-file encodes of ApplyPlan and its refill (trials and replays), through one chunk
 // cache (most of them differ in a few chunks), counted and timed for the report; and the time
-// spent building the states they encode (Build), apart.
+// spent building the states they encode (Built), apart.
 class TrialEncoder {
  public:
   StatusOr<std::vector<uint8_t>> operator()(const Asset& asset, const WriteOptions& write) {

@@ -10,6 +10,7 @@
 
 #include "atex/detail/texture.h"
 #include "container/fingerprint.h"
+#include "container/row_blocks.h"
 
 namespace atex::fit {
 namespace {
@@ -261,15 +262,13 @@ StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count, TextureShrinkMem
   out.RebuildOffsets();
   out.texels.resize(out.texel_count() * kTexelChannels);
   // Independent copies into disjoint ranges: on several threads (a Panoptic pool is 70 MB).
-#ifdef _OPENMP
-#pragma omp parallel for schedule(static) if (n > 4096)
-#endif
-  for (int64_t j = 0; j < static_cast<int64_t>(n); ++j) {
-    const size_t i = static_cast<size_t>(j);
-    const float* src = texels_of(static_cast<uint32_t>(i));
-    std::copy(src, src + static_cast<size_t>(out.heights[i]) * out.widths[i] * kTexelChannels,
-              out.texels.begin() + static_cast<std::ptrdiff_t>(out.offsets[i] * kTexelChannels));
-  }
+  container::ForRowBlocks(n, container::RowBlocks(n, out.texels.size()), [&](int64_t, uint64_t begin, uint64_t end) {
+    for (size_t i = begin; i < end; ++i) {
+      const float* src = texels_of(static_cast<uint32_t>(i));
+      std::copy(src, src + static_cast<size_t>(out.heights[i]) * out.widths[i] * kTexelChannels,
+                out.texels.begin() + static_cast<std::ptrdiff_t>(out.offsets[i] * kTexelChannels));
+    }
+  });
   pool = std::move(out);
   // Textures of different sizes are an adaptive pool, whatever mode trained them.
   if (done > 0 && asset->metadata.texture_mode == "uniform") asset->metadata.texture_mode = "adaptive";
