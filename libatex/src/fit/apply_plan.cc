@@ -162,7 +162,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
       const double encode_seconds_before = encoder.seconds();
       const double build_seconds_before = encoder.build_seconds();
       ATEX_RETURN_IF_ERROR(RefillSlack(asset, plan, write, budget_bytes, &out.moves, &state, &bytes, &encoder,
-                                       std::move(checkpoint), checkpoint_index));
+                                       std::move(checkpoint), checkpoint_index, tail));
       out.refill_seconds = refill_clock.Lap();
       out.refill_encodes = encoder.count() - encodes_before;
       out.refill_encode_seconds = encoder.seconds() - encode_seconds_before;

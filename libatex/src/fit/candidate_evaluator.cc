@@ -8,13 +8,17 @@
 
 namespace atex::fit::internal {
 
-size_t CandidatesAtOnce(const PlanOptions& options, const Asset& asset) {
-  if (options.parallel_candidates > 0) return static_cast<size_t>(options.parallel_candidates);
+uint64_t AssetArrayBytes(const Asset& asset) {
   const Gaussians& g = asset.gaussians;
   uint64_t bytes = sizeof(float) * (g.positions.size() + g.rotations.size() + g.log_scales.size() +
                                     g.opacity_logits.size() + g.sh.size() + g.time_windows.size());
   if (asset.textures) bytes += sizeof(float) * asset.textures->texels.size();
-  const uint64_t per_candidate = 4 * std::max<uint64_t>(bytes, 1);
+  return std::max<uint64_t>(bytes, 1);
+}
+
+size_t CandidatesAtOnce(const PlanOptions& options, const Asset& asset) {
+  if (options.parallel_candidates > 0) return static_cast<size_t>(options.parallel_candidates);
+  const uint64_t per_candidate = 4 * AssetArrayBytes(asset);
   const uint64_t fit = MemoryLimit(UINT64_MAX) / per_candidate;
   return std::clamp<size_t>(std::min<uint64_t>(fit, std::thread::hardware_concurrency()), 1, 4);
 }

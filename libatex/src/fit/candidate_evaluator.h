@@ -43,7 +43,7 @@ struct Evaluated {
   }
   State Next() && {
     if (next) return std::move(*next);
-    State s = *base;
+    State s = CopyState(*base);  // on several threads: the plan waits for it
     s.write = write;
     return s;
   }
@@ -58,6 +58,10 @@ inline bool Better(const Cached& a, const Cached& b) {
 // for an encoding move), its file, its decode (whose arrays a GPU render state takes over, or
 // copies with --quality).
 size_t CandidatesAtOnce(const PlanOptions& options, const Asset& asset);
+
+// The bytes of an asset's per-Gaussian arrays and texels in memory (at least 1): what a copy
+// of its state costs.
+uint64_t AssetArrayBytes(const Asset& asset);
 
 // A preparation handed to the pool: its result is written by the task, read once it finished.
 struct Pending {

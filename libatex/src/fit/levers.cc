@@ -136,7 +136,7 @@ Asset SubsetGaussians(const Asset& asset, const std::vector<uint8_t>& keep) {
   return out;
 }
 
-Asset CopyAsset(const Asset& asset) {
+Asset CopyAsset(const Asset& asset, bool with_texture_pool) {
   Asset out;
   out.metadata = asset.metadata;
   out.deformation = asset.deformation;  // grids and MLP: megabytes
@@ -149,7 +149,7 @@ Asset CopyAsset(const Asset& asset) {
                                              [&] { og.opacity_logits = g.opacity_logits; },
                                              [&] { og.sh = g.sh; },
                                              [&] { og.time_windows = g.time_windows; }};
-  if (asset.textures) {
+  if (asset.textures && with_texture_pool) {
     out.textures.emplace();
     jobs.push_back([&] {
       TexturePool& t = *out.textures;

@@ -14,8 +14,9 @@ namespace atex::fit {
 Asset SubsetGaussians(const Asset& asset, const std::vector<uint8_t>& keep);
 
 // A copy of `asset`, its large arrays copied on several threads (a fitter candidate copies a
-// whole asset of hundreds of megabytes).
-Asset CopyAsset(const Asset& asset);
+// whole asset of hundreds of megabytes). Without `with_texture_pool`, the copy has no texture
+// pool: for a caller that builds a new one.
+Asset CopyAsset(const Asset& asset, bool with_texture_pool = true);
 
 // SH degree d → d − 1 (coefficients of band d dropped; the deformation field's SH
 // head, when on, loses the matching outputs). kInvalidArgument at degree 0.

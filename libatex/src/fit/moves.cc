@@ -109,6 +109,15 @@ StatusOr<State> AppliedTo(const State& from, const Move& move, const std::vector
     next.memo = from.memo;
     return next;
   }
+  if (move.lever == Lever::kTextures && from.asset.textures) {
+    // The shrunk pool is built from `from`'s: a copy of the input pool would be replaced whole.
+    State next{CopyAsset(from.asset, /*with_texture_pool=*/false), from.write, from.kept, from.memo};
+    TexturePool pool;
+    ATEX_ASSIGN_OR_RETURN(const uint64_t done, ShrinkTexturePool(from.asset, move.count, from.memo.get(), &pool));
+    next.asset.textures = std::move(pool);
+    MarkTexturesShrunk(&next.asset, done);
+    return next;
+  }
   State next = CopyState(from);
   ATEX_RETURN_IF_ERROR(ApplyMove(move, prune_order, &next.asset, &next.write, &next.kept, min_grid_resolution,
                                  next.memo.get()));

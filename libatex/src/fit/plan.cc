@@ -2,11 +2,13 @@
 // to a budget is apply_plan.cc.
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <map>
 #include <memory>
 #include <optional>
 #include <tuple>
 
+#include "atex/file_io.h"
 #include "atex/fit.h"
 #include "candidate_evaluator.h"
 #include "levers.h"
@@ -172,16 +174,19 @@ void ReportProgress(const PlanOptions& options, const Plan& plan, const Move& mo
 }
 
 // The states Plan::tail keeps, collected while the plan is built (moved in, not copied): the
-// state before the last move taken, and those before the last two moves that changed the
-// content (no encoding moves: ApplyPlan's refill starts from the latest one before the last
-// move, FirstRefillPrefix).
+// state before the last move taken, and those before the last few moves that changed the
+// content (no encoding moves). ApplyPlan's refill replays from the latest one at or before the
+// move it tries (FirstRefillPrefix, PrefixStates): without them it replays from the input.
 class TailKeeper {
  public:
+  // Keeps the states before the last `content_states` content moves (at least 1).
+  explicit TailKeeper(size_t content_states) : content_states_(std::max<size_t>(content_states, 1)) {}
+
   // `before` is the state before `move`, the plan's move number `index`.
   void Taken(const Move& move, size_t index, std::shared_ptr<const State> before) {
     before_last_ = std::move(before);
     if (move.lever != Lever::kEncoding) {
-      if (before_content_.size() == 2) before_content_.erase(before_content_.begin());
+      if (before_content_.size() == content_states_) before_content_.erase(before_content_.begin());
       before_content_.emplace_back(index, before_last_);
     }
   }
@@ -207,9 +212,19 @@ class TailKeeper {
   }
 
  private:
+  size_t content_states_;
   std::shared_ptr<const State> before_last_;
-  std::vector<std::pair<size_t, std::shared_ptr<const State>>> before_content_;  // (move index, state), two at most
+  std::deque<std::pair<size_t, std::shared_ptr<const State>>> before_content_;  // (move index, state)
 };
+
+// How many states before content moves the tail keeps: a refill usually undoes a few of the
+// last content moves, each replayed from the latest kept state before it. Up to eight, fewer
+// where they would take more than a sixteenth of the machine's memory (a Panoptic state is
+// about 150 MB).
+size_t TailContentStates(const Asset& asset) {
+  const uint64_t fit = MemoryLimit(UINT64_MAX) / 16 / internal::AssetArrayBytes(asset);
+  return static_cast<size_t>(std::clamp<uint64_t>(fit, 2, 8));
+}
 
 }  // namespace
 
@@ -241,7 +256,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   CandidateEvaluator evaluator(options, &plan, &measurer, &state, &current);
   std::map<MoveKey, Cached> cache;
   StepScale scale;
-  TailKeeper tail;
+  TailKeeper tail(TailContentStates(asset));
   while (current.bytes > options.floor_bytes) {
     Stopwatch propose_clock;
     const std::vector<Move> proposals = Proposals(*state, options, scale);

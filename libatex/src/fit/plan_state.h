@@ -71,7 +71,8 @@ class TrialEncoder {
 
 // BuildPlan's states after some of its last moves (Plan::tail): `states[i]` is the state after
 // moves[0, indices[i]): after all its moves, after all but the last, and before each of its
-// last two content moves (no encoding moves). Valid for ApplyPlan calls given the very asset
+// last few content moves (no encoding moves; TailContentStates, plan.cc), in increasing index
+// order. Valid for ApplyPlan calls given the very asset
 // object BuildPlan was given, unchanged, and its write options: ApplyPlan checks the address,
 // the Gaussian count and the write options; that the asset was not changed in place between
 // the two calls is the caller's part (RunFit passes the same const object to both).
@@ -102,7 +103,8 @@ StatusOr<State> SmallestState(const Asset& asset, const WriteOptions& write, int
 State CopyState(const State& state);
 
 // The state after `move` applied to `from` (ApplyMove), without copying first what the move
-// replaces: a prune gathers the Gaussians it keeps from `from` directly.
+// replaces: a prune gathers the Gaussians it keeps from `from` directly, and a texture move
+// builds its pool from `from`'s.
 StatusOr<State> AppliedTo(const State& from, const Move& move, const std::vector<uint32_t>& prune_order,
                           int min_grid_resolution);
 
@@ -120,10 +122,13 @@ StatusOr<State> ApplyRange(const State& start, const Plan& plan, const std::vect
 // degree, the grid) is undone whole when the output without it still fits and grows, else
 // skipped. Every state taken was encoded and fits, so the output stays within the budget.
 // `checkpoint`, when given, is the state after moves[0, checkpoint_index), replayed once by
-// the caller: the refill builds the states it needs from it instead of from the input.
+// the caller, and `tail` (may be null) the plan's kept states when `moves` start with the
+// plan's own: the refill builds the states it needs from the latest of them before the move it
+// tries instead of from the input.
 Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
                    std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, TrialEncoder* encode,
-                   std::optional<State> checkpoint = std::nullopt, size_t checkpoint_index = 0);
+                   std::optional<State> checkpoint = std::nullopt, size_t checkpoint_index = 0,
+                   const PlanTail* tail = nullptr);
 
 // The index of the first move RefillSlack replays from a prefix when moves[0, end) come before
 // an indivisible last move: the latest one that is no encoding move (those are undone without

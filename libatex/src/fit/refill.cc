@@ -17,19 +17,26 @@ struct Refill {
   std::vector<uint8_t> bytes;
 };
 
-// The states after moves[0, k) for the descending k of RefillSlack, each built from a
-// checkpoint up to kStride moves earlier instead of from the input: replaying a whole plan
-// of 78 moves on a 140 MB asset takes ~13 s (0.17 s per move applied, measured on the
-// Panoptic uniform fit), and the refill needs one prefix per move it tries. Valid while the
-// moves before the checkpoint stay as they are (RefillSlack only changes or removes the
-// move it tries, at or after the checkpoint).
+// The states after moves[0, k) for the descending k of RefillSlack, each built from the
+// latest state kept before k: one of the plan's (Plan::tail: the states before its last
+// content moves), the caller's checkpoint, or one of its own taken up to kStride moves
+// earlier. Replaying a whole plan of 78 moves on a 140 MB asset takes ~13 s (0.17 s per move
+// applied, measured on the Panoptic uniform fit), and the refill needs one prefix per move it
+// tries. A kept state stays valid while the moves before it stay as they are (RefillSlack
+// only changes or removes the move it tries, at or after the index it asks for).
 class PrefixStates {
  public:
-  // `checkpoint`, when given, is the state after moves[0, checkpoint_index).
+  // `checkpoint`, when given, is the state after moves[0, checkpoint_index); `tail` (may be
+  // null) holds the plan's states, for a refill of the plan's own moves.
   PrefixStates(const Asset& asset, const WriteOptions& write, const Plan& plan, std::shared_ptr<TextureShrinkMemo> memo,
-               std::optional<State> checkpoint, size_t checkpoint_index)
-      : asset_(asset), write_(write), plan_(plan), memo_(std::move(memo)), checkpoint_(std::move(checkpoint)),
-        checkpoint_index_(checkpoint_index) {}
+               std::optional<State> checkpoint, size_t checkpoint_index, const PlanTail* tail)
+      : asset_(asset),
+        write_(write),
+        plan_(plan),
+        memo_(std::move(memo)),
+        checkpoint_(std::move(checkpoint)),
+        checkpoint_index_(checkpoint_index),
+        tail_(tail) {}
 
   // Before() timed as a state build of `encode` (the report's refill_state_seconds).
   StatusOr<State> Before(const std::vector<Move>& moves, size_t k, TrialEncoder* encode) {
@@ -38,15 +45,29 @@ class PrefixStates {
 
  private:
   StatusOr<State> Before(const std::vector<Move>& moves, size_t k) {
-    if (!checkpoint_ || checkpoint_index_ > k) {
+    const State* from = nullptr;
+    size_t from_index = 0;
+    for (size_t i = 0; tail_ != nullptr && i < tail_->indices.size(); ++i) {
+      if (tail_->indices[i] <= k && (from == nullptr || tail_->indices[i] > from_index)) {
+        from = tail_->states[i].get();
+        from_index = tail_->indices[i];
+      }
+    }
+    if (checkpoint_ && checkpoint_index_ <= k && (from == nullptr || checkpoint_index_ > from_index)) {
+      from = &*checkpoint_;
+      from_index = checkpoint_index_;
+    }
+    if (from == nullptr) {  // from the input, to a checkpoint the next (smaller) k can start from
       const size_t index = k > kStride ? k - kStride : 0;
       State start = InitialState(asset_, write_);
       start.memo = memo_;  // the textures of every replay are mostly the same
       ATEX_ASSIGN_OR_RETURN(State at, ApplyRange(start, plan_, moves, 0, index, moves.size(), 0));
       checkpoint_ = std::move(at);
       checkpoint_index_ = index;
+      from = &*checkpoint_;
+      from_index = index;
     }
-    return ApplyRange(*checkpoint_, plan_, moves, checkpoint_index_, k, moves.size(), 0);
+    return ApplyRange(*from, plan_, moves, from_index, k, moves.size(), 0);
   }
 
   static constexpr size_t kStride = 8;
@@ -56,6 +77,7 @@ class PrefixStates {
   const std::shared_ptr<TextureShrinkMemo> memo_;
   std::optional<State> checkpoint_;
   size_t checkpoint_index_ = 0;
+  const PlanTail* tail_;
 };
 
 // The smallest count of moves[k] (the other moves as they are) whose output fits `budget`:
@@ -143,9 +165,9 @@ size_t FirstRefillPrefix(const std::vector<Move>& moves, size_t end) {
 // are left unused (count_search.h).
 Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& write, uint64_t budget,
                    std::vector<Move>* moves, State* state, std::vector<uint8_t>* bytes, TrialEncoder* encode,
-                   std::optional<State> checkpoint, size_t checkpoint_index) {
+                   std::optional<State> checkpoint, size_t checkpoint_index, const PlanTail* tail) {
   std::optional<size_t> earliest_changed;  // index (after any removals) of the earliest move changed
-  PrefixStates prefixes(asset, write, plan, state->memo, std::move(checkpoint), checkpoint_index);
+  PrefixStates prefixes(asset, write, plan, state->memo, std::move(checkpoint), checkpoint_index, tail);
   // The latest prefix built (the state after moves[0, prefix_index)), kept for the replay at
   // the end: the refill only changes moves at or after the index it tries.
   std::optional<State> prefix;

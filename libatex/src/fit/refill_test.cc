@@ -122,6 +122,9 @@ TEST(Refill, ThePlansKeptStatesGiveTheSameFits) {
   ASSERT_NE(plan->tail, nullptr);
   ASSERT_TRUE(plan->tail->Serves(asset, write)) << "the fixture's asset moved since its plan was built";
   ASSERT_GE(plan->moves.size(), 3u);
+  // Several states before content moves besides the last two states, so that refills start
+  // from kept states at several depths.
+  EXPECT_GE(plan->tail->indices.size(), 5u);
   Plan without = *plan;
   without.tail = nullptr;
   const Asset copy = asset;  // equal content, another object: not served by the tail

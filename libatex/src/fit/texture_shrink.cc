@@ -161,56 +161,59 @@ uint64_t ShrinkableTexels(const TexturePool& pool) { return pool.texel_count() -
 namespace {
 
 struct Op {
-  double cost = 0;     // damage per removed texel
+  double cost = 0;  // damage per removed texel
   double demand = 0;
   uint32_t index = 0;
   uint8_t new_h = 1, new_w = 1;
-  bool operator>(const Op& o) const {
-    return std::tie(cost, demand, index) > std::tie(o.cost, o.demand, o.index);
-  }
+  // Where the op sits in ShrinkTexturePool's chains (not part of the order).
+  uint32_t chain = 0;
+  uint8_t step = 0;
+  bool operator>(const Op& o) const { return std::tie(cost, demand, index) > std::tie(o.cost, o.demand, o.index); }
 };
 
-}  // namespace
+// A texture's halvings one after another, down to 1×1 (4×4 takes four), and how many of them
+// the greedy took.
+constexpr int kMaxHalvings = 4;
+struct Chain {
+  std::array<Op, kMaxHalvings> ops;
+  uint8_t length = 0, taken = 0;
+};
+constexpr uint32_t kNoChain = UINT32_MAX;
 
-StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count, TextureShrinkMemo* memo) {
-  if (!asset->textures) return uint64_t{0};
-  TexturePool& pool = *asset->textures;
-  const size_t n = pool.size();
-  // Statistics the trainer leaves (model.h, GaussianStats); missing ones count as
-  // importance 1, demand 0 and equal scales.
-  static const std::vector<float> kMissing;
-  const GaussianStats* stats = asset->stats ? &*asset->stats : nullptr;
-  const std::vector<float>& importance_of = stats ? stats->importance : kMissing;
-  const std::vector<float>& demand_of = stats ? stats->texture_demand : kMissing;
-  const std::vector<float>& scale_u_of = stats ? stats->peak_scale_u : kMissing;
-  const std::vector<float>& scale_v_of = stats ? stats->peak_scale_v : kMissing;
-  const auto stat = [&](const std::vector<float>& v, size_t i, float fallback) {
-    return v.size() == n ? v[i] : fallback;
-  };
-  // Current texels per Gaussian (modified copies are kept separately until the pool is rebuilt).
-  std::vector<std::vector<float>> changed(n);
-  std::vector<uint8_t> heights = pool.heights, widths = pool.widths;
-  const auto texels_of = [&](uint32_t i) -> const float* {
-    return changed[i].empty() ? pool.texels.data() + pool.offsets[i] * kTexelChannels : changed[i].data();
-  };
-  const auto best_op = [&](uint32_t i, Op* op) -> bool {
-    const int h = heights[i], w = widths[i];
+// A shrunk texture: a halving leaves at most 4×2 texels.
+using ShrunkTexels = std::array<float, 4 * 2 * kTexelChannels>;
+
+// The cheapest halving of a texture of `asset`'s pool, whatever texels it holds now. The
+// statistics the trainer leaves (model.h, GaussianStats) weigh it; missing ones count as
+// importance 1, demand 0 and equal scales. Thread-safe.
+class HalvingCosts {
+ public:
+  HalvingCosts(const Asset& asset, TextureShrinkMemo* memo) : n_(asset.textures->size()), memo_(memo) {
+    if (const GaussianStats* stats = asset.stats ? &*asset.stats : nullptr) {
+      importance_ = &stats->importance;
+      demand_ = &stats->texture_demand;
+      scale_u_ = &stats->peak_scale_u;
+      scale_v_ = &stats->peak_scale_v;
+    }
+  }
+
+  // The op halving texture i, whose texels are `src` ([h][w][4]), along its cheaper axis (on a
+  // tie the one with the smaller peak scale); false at 1×1.
+  bool Best(uint32_t i, const float* src, int h, int w, Op* op) const {
     if (h == 1 && w == 1) return false;
-    const double importance = std::max(0.0f, stat(importance_of, i, 1.0f));
-    struct Choice { double cost; double scale; int nh, nw; };
+    const double importance = std::max(0.0f, Stat(importance_, i, 1.0f));
+    struct Choice {
+      double cost;
+      double scale;
+      int nh, nw;
+    };
     std::array<Choice, 2> choices;
     int choice_count = 0;
-    // Halving w (u axis) or h (v axis); the peak scale along the axis breaks ties (smaller matters less).
-    const float* src = texels_of(i);
-    const HalvingResiduals r = memo != nullptr ? memo->Residuals(src, h, w) : HalvingResidualsOf(src, h, w);
-    if (w > 1) {
-      choices[choice_count++] = {importance * r.width * h * w / (h * (w - w / 2)), stat(scale_u_of, i, 0.0f), h,
-                                 w / 2};
-    }
-    if (h > 1) {
-      choices[choice_count++] = {importance * r.height * h * w / (w * (h - h / 2)), stat(scale_v_of, i, 0.0f),
-                                 h / 2, w};
-    }
+    const HalvingResiduals r = memo_ != nullptr ? memo_->Residuals(src, h, w) : HalvingResidualsOf(src, h, w);
+    if (w > 1)
+      choices[choice_count++] = {importance * r.width * h * w / (h * (w - w / 2)), Stat(scale_u_, i, 0), h, w / 2};
+    if (h > 1)
+      choices[choice_count++] = {importance * r.height * h * w / (w * (h - h / 2)), Stat(scale_v_, i, 0), h / 2, w};
     const Choice* best = &choices[0];
     for (int c = 1; c < choice_count; ++c) {
       if (choices[c].cost < best->cost || (choices[c].cost == best->cost && choices[c].scale < best->scale)) {
@@ -218,60 +221,160 @@ StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count, TextureShrinkMem
       }
     }
     op->cost = best->cost;
-    op->demand = stat(demand_of, i, 0.0f);
+    op->demand = Stat(demand_, i, 0.0f);
     op->index = i;
     op->new_h = static_cast<uint8_t>(best->nh);
     op->new_w = static_cast<uint8_t>(best->nw);
     return true;
-  };
-  // Every texture's cheapest halving, computed in parallel (independent), then a
-  // min-heap in Op order (a total order, so the result does not depend on threads).
-  std::vector<Op> initial(n);
+  }
+
+ private:
+  float Stat(const std::vector<float>* v, size_t i, float fallback) const {
+    return v != nullptr && v->size() == n_ ? (*v)[i] : fallback;
+  }
+  size_t n_;
+  TextureShrinkMemo* memo_;
+  const std::vector<float>*importance_ = nullptr, *demand_ = nullptr, *scale_u_ = nullptr, *scale_v_ = nullptr;
+};
+
+const float* InputTexels(const TexturePool& pool, size_t i) {
+  return pool.texels.data() + pool.offsets[i] * kTexelChannels;
+}
+
+// The chains of halvings of the textures whose first halving is among the `count` cheapest
+// (every texture's first halving is computed, in parallel); chain_of[i] is texture i's chain
+// or kNoChain. A greedy of `count` pops only ever pops these chains' ops: a first halving
+// outside them comes after all of theirs, and they are `count` pops. Each chain (every
+// halving after the one before: most of the greedy's work, and independent) is computed on
+// several threads.
+std::vector<Chain> ChainsOfTheCheapest(const TexturePool& pool, const HalvingCosts& costs, uint64_t count,
+                                       std::vector<uint32_t>* chain_of) {
+  const size_t n = pool.size();
+  std::vector<Op> first(n);
   std::vector<uint8_t> has_op(n, 0);
 #ifdef _OPENMP
 #pragma omp parallel for schedule(static) if (n > 4096)
 #endif
   for (int64_t i = 0; i < static_cast<int64_t>(n); ++i) {
-    has_op[i] = best_op(static_cast<uint32_t>(i), &initial[i]);
+    has_op[i] = costs.Best(static_cast<uint32_t>(i), InputTexels(pool, i), pool.heights[i], pool.widths[i], &first[i]);
   }
-  std::vector<Op> heap;
-  heap.reserve(n);
+  size_t kept = 0;
   for (size_t i = 0; i < n; ++i)
-    if (has_op[i]) heap.push_back(initial[i]);
-  std::priority_queue<Op, std::vector<Op>, std::greater<Op>> queue(std::greater<Op>{}, std::move(heap));
+    if (has_op[i]) first[kept++] = first[i];
+  first.resize(kept);
+  if (first.size() > count) {
+    const auto before = [](const Op& a, const Op& b) { return b > a; };
+    std::nth_element(first.begin(), first.begin() + static_cast<std::ptrdiff_t>(count), first.end(), before);
+    first.resize(count);
+  }
+  std::vector<Chain> chains(first.size());
+  chain_of->assign(n, kNoChain);
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 256) if (chains.size() > 1024)
+#endif
+  for (int64_t j = 0; j < static_cast<int64_t>(chains.size()); ++j) {
+    Chain& chain = chains[j];
+    const uint32_t i = first[j].index;
+    (*chain_of)[i] = static_cast<uint32_t>(j);
+    chain.ops[0] = first[j];
+    chain.length = 1;
+    std::array<ShrunkTexels, 2> buffers;
+    const float* src = InputTexels(pool, i);
+    int h = pool.heights[i], w = pool.widths[i];
+    while (chain.length < kMaxHalvings) {
+      const Op& op = chain.ops[chain.length - 1];
+      float* dst = buffers[chain.length % 2].data();
+      ShrinkTexture(src, h, w, dst, op.new_h, op.new_w);
+      src = dst;
+      h = op.new_h;
+      w = op.new_w;
+      if (!costs.Best(i, src, h, w, &chain.ops[chain.length])) break;
+      ++chain.length;
+    }
+    for (uint8_t step = 0; step < chain.length; ++step) {
+      chain.ops[step].chain = static_cast<uint32_t>(j);
+      chain.ops[step].step = step;
+    }
+  }
+  return chains;
+}
+
+// `pool` with each chain's taken halvings applied, packed into `out`: a changed texture's
+// texels are its halvings replayed (the same arithmetic as when its chain was computed).
+void WriteShrunkPool(const TexturePool& pool, const std::vector<Chain>& chains, const std::vector<uint32_t>& chain_of,
+                     TexturePool* out) {
+  const size_t n = pool.size();
+  out->heights = pool.heights;
+  out->widths = pool.widths;
+  for (const Chain& chain : chains) {
+    if (chain.taken == 0) continue;
+    const Op& last = chain.ops[chain.taken - 1];
+    out->heights[last.index] = last.new_h;
+    out->widths[last.index] = last.new_w;
+  }
+  out->axis_u = pool.axis_u;
+  out->axis_v = pool.axis_v;
+  out->RebuildOffsets();
+  out->texels.resize(out->texel_count() * kTexelChannels);
+  // Independent writes into disjoint ranges: on several threads (a Panoptic pool is 70 MB).
+  container::ForRowBlocks(n, container::RowBlocks(n, out->texels.size()), [&](int64_t, uint64_t begin, uint64_t end) {
+    std::array<ShrunkTexels, 2> buffers;
+    for (size_t i = begin; i < end; ++i) {
+      const float* src = InputTexels(pool, i);
+      int h = pool.heights[i], w = pool.widths[i];
+      const Chain* chain = chain_of[i] == kNoChain ? nullptr : &chains[chain_of[i]];
+      for (uint8_t step = 0; chain != nullptr && step < chain->taken; ++step) {
+        const Op& op = chain->ops[step];
+        float* dst = buffers[step % 2].data();
+        ShrinkTexture(src, h, w, dst, op.new_h, op.new_w);
+        src = dst;
+        h = op.new_h;
+        w = op.new_w;
+      }
+      std::copy(src, src + static_cast<size_t>(h) * w * kTexelChannels,
+                out->texels.begin() + static_cast<std::ptrdiff_t>(out->offsets[i] * kTexelChannels));
+    }
+  });
+}
+
+}  // namespace
+
+StatusOr<uint64_t> ShrinkTexturePool(const Asset& asset, uint64_t count, TextureShrinkMemo* memo, TexturePool* out) {
+  if (!asset.textures) return MakeError(StatusCode::kInvalidArgument, "fit: no texture pool to shrink");
+  const TexturePool& pool = *asset.textures;
+  const HalvingCosts costs(asset, memo);
+  std::vector<uint32_t> chain_of;
+  std::vector<Chain> chains = ChainsOfTheCheapest(pool, costs, count, &chain_of);
+  // The greedy: `count` pops in Op order (a total order, so the result does not depend on
+  // threads), each offering the next halving of its texture.
+  std::vector<Op> heads;
+  heads.reserve(chains.size());
+  for (const Chain& chain : chains) heads.push_back(chain.ops[0]);
+  std::priority_queue<Op, std::vector<Op>, std::greater<Op>> queue(std::greater<Op>{}, std::move(heads));
   uint64_t done = 0;
   while (done < count && !queue.empty()) {
     const Op op = queue.top();
     queue.pop();
-    const uint32_t i = op.index;
-    std::vector<float> shrunk(static_cast<size_t>(op.new_h) * op.new_w * kTexelChannels);
-    ShrinkTexture(texels_of(i), heights[i], widths[i], shrunk.data(), op.new_h, op.new_w);
-    changed[i] = std::move(shrunk);
-    heights[i] = op.new_h;
-    widths[i] = op.new_w;
+    Chain& chain = chains[op.chain];
+    chain.taken = op.step + 1;
     ++done;
-    Op next;
-    if (best_op(i, &next)) queue.push(next);
+    if (chain.taken < chain.length) queue.push(chain.ops[chain.taken]);
   }
-  // Rebuild the packed pool.
-  TexturePool out;
-  out.heights = std::move(heights);
-  out.widths = std::move(widths);
-  out.axis_u = pool.axis_u;
-  out.axis_v = pool.axis_v;
-  out.RebuildOffsets();
-  out.texels.resize(out.texel_count() * kTexelChannels);
-  // Independent copies into disjoint ranges: on several threads (a Panoptic pool is 70 MB).
-  container::ForRowBlocks(n, container::RowBlocks(n, out.texels.size()), [&](int64_t, uint64_t begin, uint64_t end) {
-    for (size_t i = begin; i < end; ++i) {
-      const float* src = texels_of(static_cast<uint32_t>(i));
-      std::copy(src, src + static_cast<size_t>(out.heights[i]) * out.widths[i] * kTexelChannels,
-                out.texels.begin() + static_cast<std::ptrdiff_t>(out.offsets[i] * kTexelChannels));
-    }
-  });
-  pool = std::move(out);
+  WriteShrunkPool(pool, chains, chain_of, out);
+  return done;
+}
+
+void MarkTexturesShrunk(Asset* asset, uint64_t done) {
   // Textures of different sizes are an adaptive pool, whatever mode trained them.
   if (done > 0 && asset->metadata.texture_mode == "uniform") asset->metadata.texture_mode = "adaptive";
+}
+
+StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count, TextureShrinkMemo* memo) {
+  if (!asset->textures) return uint64_t{0};
+  TexturePool shrunk;
+  ATEX_ASSIGN_OR_RETURN(const uint64_t done, ShrinkTexturePool(*asset, count, memo, &shrunk));
+  asset->textures = std::move(shrunk);
+  MarkTexturesShrunk(asset, done);
   return done;
 }
 

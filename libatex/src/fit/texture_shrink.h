@@ -62,6 +62,16 @@ class TextureShrinkMemo {
 // recomputing the residuals of textures seen before; the result is the same.
 StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count, TextureShrinkMemo* memo = nullptr);
 
+// ShrinkTextures without changing `asset`: its texture pool shrunk, written to `out` (the
+// returned count of operations done; `asset`'s statistics order them). For a caller that
+// copies the rest of the asset: the input pool need not be copied first. kInvalidArgument
+// when the asset has no texture pool.
+StatusOr<uint64_t> ShrinkTexturePool(const Asset& asset, uint64_t count, TextureShrinkMemo* memo, TexturePool* out);
+
+// What ShrinkTextures does to the metadata after `done` operations: a uniform pool that
+// lost texels is adaptive.
+void MarkTexturesShrunk(Asset* asset, uint64_t done);
+
 // Halves the longer axis of every texture larger than 1×1 at once (the height when
 // both sides are equal), by the same least-squares projection: capacity scaled down
 // without moving it between Gaussians, so a uniform pool stays uniform (and keeps its

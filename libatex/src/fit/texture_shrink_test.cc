@@ -2,7 +2,10 @@
 // (fit/levers.h): exact where the coarser form can represent the field, least squares otherwise,
 // and valid assets throughout.
 #include <cmath>
+#include <optional>
+#include <queue>
 #include <random>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -92,6 +95,96 @@ TEST(TextureShrink, TheResidualMemoGivesTheSamePools) {
   EXPECT_EQ(direct.height, again.height);
   EXPECT_EQ(direct.width, ShrinkResidual(texels, 4, 4, 4, 2));
   EXPECT_EQ(direct.height, ShrinkResidual(texels, 4, 4, 2, 4));
+}
+
+// The greedy of ShrinkTextures one op at a time, as its contract states it: pop the cheapest
+// halving (damage per removed texel, then demand, then index), apply it, offer the texture's
+// next halving. The library computes the chains of halvings ahead in parallel.
+TexturePool SequentialShrink(const Asset& asset, uint64_t count) {
+  const TexturePool& pool = *asset.textures;
+  const size_t n = pool.size();
+  const GaussianStats* stats = asset.stats ? &*asset.stats : nullptr;
+  const auto stat = [&](const std::vector<float>* v, size_t i, float fallback) {
+    return v != nullptr && v->size() == n ? (*v)[i] : fallback;
+  };
+  std::vector<std::vector<float>> texels(n);
+  std::vector<uint8_t> heights = pool.heights, widths = pool.widths;
+  for (size_t i = 0; i < n; ++i) {
+    const float* src = pool.texels.data() + pool.offsets[i] * kTexelChannels;
+    texels[i].assign(src, src + pool.heights[i] * pool.widths[i] * kTexelChannels);
+  }
+  using Op = std::tuple<double, double, uint32_t, int, int>;  // cost, demand, index, new h, new w
+  const auto best = [&](uint32_t i) -> std::optional<Op> {
+    const int h = heights[i], w = widths[i];
+    if (h * w == 1) return std::nullopt;
+    const double importance = std::max(0.0f, stat(stats ? &stats->importance : nullptr, i, 1.0f));
+    const double demand = stat(stats ? &stats->texture_demand : nullptr, i, 0.0f);
+    const HalvingResiduals r = HalvingResidualsOf(texels[i].data(), h, w);
+    std::optional<Op> by_width, by_height;
+    if (w > 1) by_width = Op{importance * r.width * h * w / (h * (w - w / 2)), demand, i, h, w / 2};
+    if (h > 1) by_height = Op{importance * r.height * h * w / (w * (h - h / 2)), demand, i, h / 2, w};
+    if (!by_width) return by_height;
+    if (!by_height) return by_width;
+    const double cost_w = std::get<0>(*by_width), cost_h = std::get<0>(*by_height);
+    if (cost_h < cost_w) return by_height;
+    if (cost_h == cost_w &&
+        stat(stats ? &stats->peak_scale_v : nullptr, i, 0.0f) < stat(stats ? &stats->peak_scale_u : nullptr, i, 0.0f)) {
+      return by_height;
+    }
+    return by_width;
+  };
+  std::priority_queue<Op, std::vector<Op>, std::greater<Op>> queue;
+  for (uint32_t i = 0; i < n; ++i)
+    if (auto op = best(i)) queue.push(*op);
+  for (uint64_t done = 0; done < count && !queue.empty(); ++done) {
+    const auto [cost, demand, i, new_h, new_w] = queue.top();
+    queue.pop();
+    std::vector<float> shrunk(new_h * new_w * kTexelChannels);
+    ShrinkTexture(texels[i].data(), heights[i], widths[i], shrunk.data(), new_h, new_w);
+    texels[i] = std::move(shrunk);
+    heights[i] = static_cast<uint8_t>(new_h);
+    widths[i] = static_cast<uint8_t>(new_w);
+    if (auto next = best(i)) queue.push(*next);
+  }
+  TexturePool out;
+  out.heights = heights;
+  out.widths = widths;
+  out.axis_u = pool.axis_u;
+  out.axis_v = pool.axis_v;
+  out.RebuildOffsets();
+  for (const auto& t : texels) out.texels.insert(out.texels.end(), t.begin(), t.end());
+  return out;
+}
+
+// ShrinkTextures (its chains of halvings computed ahead, in parallel) pools what the plain
+// greedy does, bit for bit: over counts from one op to all of them, with and without the
+// trainer's statistics, and with ties in cost (zero importance) and in the axis choice
+// (equal residuals: the peak scales decide).
+TEST(TextureShrink, ChainsComputedAheadGiveTheSequentialGreedysPool) {
+  for (int variant = 0; variant < 3; ++variant) {
+    Asset a = SmallAsset(variant == 1 ? container::SyntheticTextures::kUniform : container::SyntheticTextures::kMixed,
+                         11 + variant, 3000);
+    if (variant == 0) a.stats.reset();
+    if (variant == 2) {
+      ASSERT_TRUE(a.stats.has_value());
+      for (size_t i = 0; i < a.stats->size(); i += 7) a.stats->importance[i] = 0;  // ties at cost 0
+      // Constant textures: both halvings are exact, so the peak scales choose the axis.
+      for (size_t i = 0; i < a.textures->size(); i += 5) {
+        float* t = a.textures->texels.data() + a.textures->offsets[i] * kTexelChannels;
+        std::fill(t, t + a.textures->heights[i] * a.textures->widths[i] * kTexelChannels, 0.25f);
+      }
+    }
+    const uint64_t all = ShrinkableTexels(*a.textures);
+    for (uint64_t count : {uint64_t{1}, uint64_t{17}, uint64_t{900}, uint64_t{4000}, all, all + 5}) {
+      TextureShrinkMemo memo;
+      Asset shrunk = a;
+      ASSERT_TRUE(ShrinkTextures(&shrunk, count, variant == 2 ? &memo : nullptr).ok());
+      const TexturePool expected = SequentialShrink(a, count);
+      EXPECT_EQ(shrunk.textures->heights, expected.heights) << variant << " " << count;
+      EXPECT_EQ(shrunk.textures->widths, expected.widths) << variant << " " << count;
+      EXPECT_EQ(shrunk.textures->texels, expected.texels) << variant << " " << count;
+    }
+  }
 }
 
 TEST(TextureShrink, UniformAssetsBecomeAdaptive) {
