@@ -9,6 +9,7 @@
 //   ∂L/∂x = G⊛(g·∂S/∂m) + 2x·G⊛(g·∂S/∂e) + y·G⊛(g·∂S/∂c), g = ∂L/∂S per pixel.
 #pragma once
 
+#include <utility>
 #include <vector>
 
 #include "metrics/gaussian_filter.h"
@@ -22,6 +23,38 @@ struct SsimParams {
   bool valid = false;  // average only where the window lies inside the image
 };
 
+// The five filtered maps of SSIM (m, n, e, f, c above) and two work arrays, [height][width][channels] each.
+template <typename T>
+struct SsimMaps {
+  std::vector<T> mx, my, exx, eyy, exy, scratch, product;
+
+  SsimMaps(const T* x, const T* y, int width, int height, int channels, const std::vector<T>& taps) {
+    const size_t n = size_t(width) * height * channels;
+    for (std::vector<T>* v : {&mx, &my, &exx, &eyy, &exy, &scratch, &product}) v->resize(n);
+    GaussianFilterSame(x, mx.data(), scratch.data(), width, height, channels, taps);
+    GaussianFilterSame(y, my.data(), scratch.data(), width, height, channels, taps);
+    for (size_t i = 0; i < n; ++i) product[i] = x[i] * x[i];
+    GaussianFilterSame(product.data(), exx.data(), scratch.data(), width, height, channels, taps);
+    for (size_t i = 0; i < n; ++i) product[i] = y[i] * y[i];
+    GaussianFilterSame(product.data(), eyy.data(), scratch.data(), width, height, channels, taps);
+    for (size_t i = 0; i < n; ++i) product[i] = x[i] * y[i];
+    GaussianFilterSame(product.data(), exy.data(), scratch.data(), width, height, channels, taps);
+  }
+};
+
+// SSIM's four terms at one pixel (A1, A2, B1, B2 above; S = A1·A2 / (B1·B2)) from its maps.
+template <typename T>
+struct SsimTerms {
+  T a1, a2, b1, b2;
+  SsimTerms(const SsimMaps<T>& maps, size_t i, T c1, T c2) {
+    const T m = maps.mx[i], nn = maps.my[i];
+    a1 = 2 * m * nn + c1;
+    a2 = 2 * (maps.exy[i] - m * nn) + c2;
+    b1 = m * m + nn * nn + c1;
+    b2 = (maps.exx[i] - m * m) + (maps.eyy[i] - nn * nn) + c2;
+  }
+};
+
 // Returns the mean SSIM over the averaged region. When `grad` is not null,
 // adds grad_scale · ∂(mean SSIM)/∂x to it. x, y, grad: [height][width][channels].
 // Precondition (valid): width, height >= window.
@@ -30,15 +63,9 @@ double SsimMeanAndGrad(const T* x, const T* y, int width, int height, int channe
                        T grad_scale, T* grad) {
   const size_t n = size_t(width) * height * channels;
   const std::vector<T> taps = GaussianTaps<T>(params.window, params.sigma);
-  std::vector<T> mx(n), my(n), exx(n), eyy(n), exy(n), scratch(n), product(n);
-  GaussianFilterSame(x, mx.data(), scratch.data(), width, height, channels, taps);
-  GaussianFilterSame(y, my.data(), scratch.data(), width, height, channels, taps);
-  for (size_t i = 0; i < n; ++i) product[i] = x[i] * x[i];
-  GaussianFilterSame(product.data(), exx.data(), scratch.data(), width, height, channels, taps);
-  for (size_t i = 0; i < n; ++i) product[i] = y[i] * y[i];
-  GaussianFilterSame(product.data(), eyy.data(), scratch.data(), width, height, channels, taps);
-  for (size_t i = 0; i < n; ++i) product[i] = x[i] * y[i];
-  GaussianFilterSame(product.data(), exy.data(), scratch.data(), width, height, channels, taps);
+  SsimMaps<T> maps(x, y, width, height, channels, taps);
+  std::vector<T>&mx = maps.mx, &my = maps.my, &exx = maps.exx, &eyy = maps.eyy, &exy = maps.exy,
+  &scratch = maps.scratch, &product = maps.product;
 
   const int r = params.valid ? params.window / 2 : 0;
   const int x0 = r, x1 = width - r, y0 = r, y1 = height - r;
@@ -53,10 +80,7 @@ double SsimMeanAndGrad(const T* x, const T* y, int width, int height, int channe
       for (int ch = 0; ch < channels; ++ch) {
         const size_t i = (size_t(py) * width + px) * channels + ch;
         const T m = mx[i], nn = my[i];
-        const T a1 = 2 * m * nn + c1;
-        const T a2 = 2 * (exy[i] - m * nn) + c2;
-        const T b1 = m * m + nn * nn + c1;
-        const T b2 = (exx[i] - m * m) + (eyy[i] - nn * nn) + c2;
+        const auto [a1, a2, b1, b2] = SsimTerms<T>(maps, i, c1, c2);
         const T denominator = b1 * b2;
         const T s = a1 * a2 / denominator;
         if (inside) sum += static_cast<double>(s);
@@ -79,6 +103,33 @@ double SsimMeanAndGrad(const T* x, const T* y, int width, int height, int channe
     for (size_t i = 0; i < n; ++i) grad[i] += my[i] + 2 * x[i] * eyy[i] + y[i] * product[i];
   }
   return sum / count;
+}
+
+// The mean SSIM of x against y for several pairs of constants (c1, c2) at once: the five
+// filtered maps depend only on the images, so they are computed once. Each mean is the
+// value SsimMeanAndGrad returns for those constants, bit for bit (the same arithmetic in the
+// same order). x, y: [height][width][channels]; `means` gets one value per pair.
+// Precondition (valid): width, height >= window.
+inline void SsimMeans(const double* x, const double* y, int width, int height, int channels, int window, double sigma,
+                      bool valid, const std::vector<std::pair<double, double>>& constants, std::vector<double>* means) {
+  const SsimMaps<double> maps(x, y, width, height, channels, GaussianTaps<double>(window, sigma));
+  const int r = valid ? window / 2 : 0;
+  const int x0 = r, x1 = width - r, y0 = r, y1 = height - r;
+  const double count = double(x1 - x0) * double(y1 - y0) * channels;
+  means->assign(constants.size(), 0.0);
+  for (size_t p = 0; p < constants.size(); ++p) {
+    const double c1 = constants[p].first, c2 = constants[p].second;
+    double sum = 0;
+    for (int py = y0; py < y1; ++py) {
+      for (int px = x0; px < x1; ++px) {
+        for (int ch = 0; ch < channels; ++ch) {
+          const auto [a1, a2, b1, b2] = SsimTerms<double>(maps, (size_t(py) * width + px) * channels + ch, c1, c2);
+          sum += a1 * a2 / (b1 * b2);
+        }
+      }
+    }
+    (*means)[p] = sum / count;
+  }
 }
 
 }  // namespace atex::metrics_detail
