@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <future>
 #include <iostream>
 #include <optional>
 #if defined(__GLIBC__)
@@ -60,6 +61,22 @@ void KeepFreedMemoryForReuse() {
   mallopt(M_MMAP_MAX, 0);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
 #endif
+}
+
+// The run's backend (`name`: cli::SelectBackend's) and, when `want_eval` and it is a GPU's, a
+// second one for the input's test evaluation beside the plan (FitRunOptions::input_eval_backend).
+struct FitBackends {
+  StatusOr<cli::SelectedBackend> main = Status(StatusCode::kInternal, "backend not started");
+  std::optional<cli::SelectedBackend> eval;
+};
+FitBackends StartBackends(const std::string& name, bool want_eval) {
+  FitBackends b;
+  b.main = cli::SelectBackend(name);
+  if (b.main.ok() && want_eval && b.main->backend->name() == "cuda") {
+    auto second = cli::SelectBackend("cuda");
+    if (second.ok()) b.eval = std::move(*second);
+  }
+  return b;
 }
 
 // Writes the fitted files (atomically) and prints the report: JSON with --json, else a summary.
@@ -205,31 +222,33 @@ int RunFit(const FitArgs& a) {
     o.order_from = &*order_from;
   }
   phase_done("command_read_input");
-  auto backend = cli::SelectBackend(a.backend);
-  if (!backend.ok()) return cli::Fail(cmd, backend.status());
-  if (!backend->note.empty()) std::cerr << "atex fit: " << backend->note << "\n";
+  // The backends start (a GPU's context takes a fraction of a second) while the dataset opens.
   // The input's test evaluation runs beside the plan on a second GPU backend
   // (FitRunOptions::input_eval_backend); on the CPU both would share the same cores. Without
   // one it runs before the plan, with the same result.
-  std::optional<cli::SelectedBackend> eval_backend;
-  if (!a.data.empty() && !(o.quality > 0) && backend->backend->name() == "cuda") {
-    auto second = cli::SelectBackend("cuda");
-    if (second.ok()) {
-      eval_backend = std::move(*second);
-      o.input_eval_backend = eval_backend->backend.get();
-    }
-  }
-  phase_done("command_backend_start");
+  auto starting = std::async(std::launch::async, StartBackends, a.backend, !a.data.empty() && !(o.quality > 0));
   std::unique_ptr<Dataset> dataset;
+  Status dataset_status = Status::Ok();
   if (!a.data.empty()) {
     // The ground truth is composited on the asset's background, the one its probe renders have.
-    auto input = DecodeAsset(input_bytes->data(), input_bytes->size());
-    if (!input.ok()) return cli::Fail(cmd, input.status().WithContext(a.input));
-    auto opened = cli::OpenDatasetArgs(a.data, a.dataset, &input->metadata.background);
-    if (!opened.ok()) return cli::Fail(cmd, opened.status());
-    dataset = std::move(*opened);
+    auto metadata = DecodeMetadata(input_bytes->data(), input_bytes->size());
+    if (!metadata.ok()) {
+      dataset_status = metadata.status().WithContext(a.input);
+    } else {
+      auto opened = cli::OpenDatasetArgs(a.data, a.dataset, &metadata->background);
+      if (opened.ok()) dataset = std::move(*opened);
+      dataset_status = opened.status();
+    }
   }
   phase_done("command_dataset_open");
+  FitBackends backends = starting.get();
+  auto& backend = backends.main;
+  if (!backend.ok()) return cli::Fail(cmd, backend.status());
+  if (!backend->note.empty()) std::cerr << "atex fit: " << backend->note << "\n";
+  if (backends.eval) o.input_eval_backend = backends.eval->backend.get();
+  // What the backends' start took beyond the dataset's opening.
+  phase_done("command_backend_start");
+  if (!dataset_status.ok()) return cli::Fail(cmd, dataset_status);
 
   auto run = fit::RunFit(*input_bytes, dataset.get(), backend->backend.get(), o);
   if (bar) bar->Finish();

@@ -145,6 +145,11 @@ class DecodeCache {
 StatusOr<Asset> DecodeAsset(const uint8_t* data, size_t size, const ReadOptions& options = {});
 // DecodeAsset through `cache` (nullptr: no cache); every check still runs on the result.
 StatusOr<Asset> DecodeAsset(const uint8_t* data, size_t size, const ReadOptions& options, DecodeCache* cache);
+// The file's metadata (META) without decoding anything else: the header, the TOC and the
+// chunk set are checked as DecodeAsset checks them, and META's CRC when options.verify_checksums;
+// the other chunks are neither checked nor decoded. For a caller that needs only the scene's
+// background, bounds or texture mode of a large file.
+StatusOr<Metadata> DecodeMetadata(const uint8_t* data, size_t size, const ReadOptions& options = {});
 
 // File forms; writes are atomic (temporary file + rename). Errors are prefixed
 // with the path.

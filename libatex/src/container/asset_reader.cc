@@ -97,6 +97,22 @@ class AssetDecoder {
   AssetDecoder(const uint8_t* data, size_t size, const ReadOptions& options, DecodeCache::Impl* cache)
       : data_(data), size_(size), options_(options), cache_(cache) {}
 
+  // The META chunk alone: the container's structure and META's checksum are checked, no
+  // other chunk is read.
+  StatusOr<Metadata> MetadataOnly() {
+    ATEX_ASSIGN_OR_RETURN(container_, ParseContainer(data_, size_, options_.verify_checksums));
+    ATEX_RETURN_IF_ERROR(IndexChunks());
+    ATEX_RETURN_IF_ERROR(CheckPresence());
+    const int meta_index = index_[static_cast<size_t>(ChunkId::kMeta)];
+    if (options_.verify_checksums) {
+      ATEX_RETURN_IF_ERROR(VerifyChunkCrc(data_, container_.entries[meta_index], static_cast<size_t>(meta_index)));
+    }
+    ATEX_ASSIGN_OR_RETURN(ChunkBytes meta, Content(ChunkId::kMeta));
+    auto metadata = DecodeMeta(meta.data(), meta.size());
+    if (!metadata.ok()) return metadata.status().WithContext(Label(ChunkId::kMeta));
+    return metadata;
+  }
+
   StatusOr<Asset> Run() {
     ATEX_ASSIGN_OR_RETURN(container_, ParseContainer(data_, size_, options_.verify_checksums));
     ATEX_RETURN_IF_ERROR(IndexChunks());
@@ -422,6 +438,18 @@ StatusOr<Asset> DecodeAsset(const uint8_t* data, size_t size, const ReadOptions&
     return MakeError(StatusCode::kLimitExceeded, "out of memory decoding a ", size, "-byte .atex file");
   } catch (const std::exception& e) {
     return MakeError(StatusCode::kInternal, "DecodeAsset: ", e.what());
+  }
+}
+
+StatusOr<Metadata> DecodeMetadata(const uint8_t* data, size_t size, const ReadOptions& options) {
+  if (data == nullptr && size != 0) return MakeError(StatusCode::kInvalidArgument, "DecodeMetadata: null data");
+  try {
+    container::AssetDecoder decoder(data, size, options, nullptr);
+    return decoder.MetadataOnly();
+  } catch (const std::bad_alloc&) {
+    return MakeError(StatusCode::kLimitExceeded, "out of memory reading the metadata of a ", size, "-byte .atex file");
+  } catch (const std::exception& e) {
+    return MakeError(StatusCode::kInternal, "DecodeMetadata: ", e.what());
   }
 }
 

@@ -56,6 +56,50 @@ TEST(Inspect, RefusesDamagedHeaders) {
   EXPECT_EQ(InspectContainer(bytes->data(), 31).status().code(), StatusCode::kTruncated);
 }
 
+// DecodeMetadata reads META alone: the metadata DecodeAsset gives, also when another chunk's
+// bytes are damaged; a damaged META, TOC or a truncated file is still refused.
+TEST(Inspect, MetadataAloneSkipsTheOtherChunks) {
+  container::SyntheticAssetOptions o;
+  o.gaussians = 300;
+  Asset asset = container::MakeSyntheticAsset(o);
+  asset.metadata.background = {0.25f, 0.5f, 1.0f};
+  asset.metadata.texture_mode = "adaptive";
+  auto bytes = EncodeAsset(asset, {});
+  ASSERT_TRUE(bytes.ok());
+  auto whole = DecodeAsset(bytes->data(), bytes->size());
+  ASSERT_TRUE(whole.ok()) << whole.status().ToString();
+  auto meta = DecodeMetadata(bytes->data(), bytes->size());
+  ASSERT_TRUE(meta.ok()) << meta.status().ToString();
+  EXPECT_EQ(meta->background, whole->metadata.background);
+  EXPECT_EQ(meta->texture_mode, "adaptive");
+  EXPECT_EQ(meta->bounds_min, whole->metadata.bounds_min);
+  EXPECT_EQ(meta->bounds_max, whole->metadata.bounds_max);
+  EXPECT_EQ(meta->extra, whole->metadata.extra);
+
+  auto info = InspectContainer(bytes->data(), bytes->size());
+  ASSERT_TRUE(info.ok());
+  const auto chunk = [&](const std::string& type) {
+    for (const ChunkInfo& c : info->chunks)
+      if (c.type == type) return c;
+    ADD_FAILURE() << type << " missing";
+    return ChunkInfo{};
+  };
+  std::vector<uint8_t> damaged = *bytes;
+  damaged[chunk("GPOS").offset + 3] ^= 0x40;  // a stream's stored bytes
+  EXPECT_EQ(DecodeAsset(damaged.data(), damaged.size()).status().code(), StatusCode::kChecksumMismatch);
+  auto still = DecodeMetadata(damaged.data(), damaged.size());
+  ASSERT_TRUE(still.ok()) << still.status().ToString();
+  EXPECT_EQ(still->background, asset.metadata.background);
+
+  damaged = *bytes;
+  damaged[chunk("META").offset + 1] ^= 0x40;
+  const Status bad_meta = DecodeMetadata(damaged.data(), damaged.size()).status();
+  EXPECT_EQ(bad_meta.code(), StatusCode::kChecksumMismatch);
+  EXPECT_NE(bad_meta.message().find("META"), std::string::npos) << bad_meta.ToString();
+  EXPECT_EQ(DecodeMetadata(bytes->data(), 31).status().code(), StatusCode::kTruncated);
+  EXPECT_EQ(DecodeMetadata(nullptr, 10).status().code(), StatusCode::kInvalidArgument);
+}
+
 TEST(Inspect, Names) {
   EXPECT_EQ(CodecName(Codec::kDeltaShuffleZstd), "delta-shuffle-zstd");
   EXPECT_EQ(CodecName(static_cast<Codec>(9)), "codec-9");
