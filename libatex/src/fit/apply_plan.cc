@@ -117,13 +117,13 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
     }
     Move last = plan.moves[j];
     // The refill after an indivisible last move starts from the state before its first prefix
-    // move: kept from the plan or from this replay (one copy), not replayed again from the input.
+    // move: the plan's kept states (which RefillSlack reads itself) or a copy taken during this
+    // replay, not replayed again from the input.
     const size_t checkpoint_index = last.divisible() ? j : internal::FirstRefillPrefix(plan.moves, j);
     std::optional<State> checkpoint;
     const State* kept = tail != nullptr ? tail->After(j) : nullptr;
     if (kept != nullptr) {
       state = CopyState(*kept);
-      if (const State* c = checkpoint_index < j ? tail->After(checkpoint_index) : nullptr) checkpoint = CopyState(*c);
       out.moves.assign(plan.moves.begin(), plan.moves.begin() + static_cast<std::ptrdiff_t>(j));
     } else {
       if (tail != nullptr) state = initial_state();

@@ -29,6 +29,17 @@ Status CheckPair(const Image& a, const Image& b) {
   return Status::Ok();
 }
 
+// The constants and window of SSIM with `options` (C1 = (0.01 R)², C2 = (0.03 R)²).
+metrics_detail::SsimParams ParamsOf(const SsimOptions& options) {
+  metrics_detail::SsimParams params;
+  params.c1 = (0.01 * options.data_range) * (0.01 * options.data_range);
+  params.c2 = (0.03 * options.data_range) * (0.03 * options.data_range);
+  params.window = options.window;
+  params.sigma = options.sigma;
+  params.valid = options.padding == SsimPadding::kValid;
+  return params;
+}
+
 std::vector<double> ToDouble(const Image& image) {
   return std::vector<double>(image.pixels.begin(), image.pixels.end());
 }
@@ -54,12 +65,7 @@ StatusOr<double> Ssim(const Image& a, const Image& b, const SsimOptions& options
     return MakeError(StatusCode::kInvalidArgument, "SSIM options: window ", options.window, " (odd, >= 1), sigma ",
                      options.sigma, ", data range ", options.data_range);
   }
-  metrics_detail::SsimParams params;
-  params.c1 = (0.01 * options.data_range) * (0.01 * options.data_range);
-  params.c2 = (0.03 * options.data_range) * (0.03 * options.data_range);
-  params.window = options.window;
-  params.sigma = options.sigma;
-  params.valid = options.padding == SsimPadding::kValid;
+  const metrics_detail::SsimParams params = ParamsOf(options);
   if (params.valid && (a.width < options.window || a.height < options.window)) {
     return MakeError(StatusCode::kInvalidArgument, "SSIM with valid padding needs images of at least ",
                      options.window, "x", options.window, ", got ", a.width, "x", a.height);
@@ -90,15 +96,12 @@ StatusOr<ImageMetrics> CompareImages(const Image& rendered, const Image& target)
   m.psnr = m.mse == 0 ? std::numeric_limits<double>::infinity() : -10.0 * std::log10(m.mse);
   // SSIM at the default options (data range 1) and DSSIM at data range 2 share their filtered
   // maps: one pass over the images, the values Ssim and Dssim give.
-  const SsimOptions defaults;
-  std::vector<std::pair<double, double>> constants;
-  for (const double range : {defaults.data_range, 2.0}) {
-    constants.emplace_back((0.01 * range) * (0.01 * range), (0.03 * range) * (0.03 * range));
-  }
+  SsimOptions range2;
+  range2.data_range = 2.0;
   const std::vector<double> x = ToDouble(rendered), y = ToDouble(target);
   std::vector<double> ssims;
-  metrics_detail::SsimMeans(x.data(), y.data(), rendered.width, rendered.height, rendered.channels, defaults.window,
-                            defaults.sigma, defaults.padding == SsimPadding::kValid, constants, &ssims);
+  metrics_detail::SsimMeans(x.data(), y.data(), rendered.width, rendered.height, rendered.channels,
+                            {ParamsOf(SsimOptions{}), ParamsOf(range2)}, &ssims);
   m.ssim = ssims[0];
   m.dssim1 = (1.0 - m.ssim) / 2.0;
   m.dssim2 = (1.0 - ssims[1]) / 2.0;

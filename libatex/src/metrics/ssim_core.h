@@ -9,7 +9,6 @@
 //   ∂L/∂x = G⊛(g·∂S/∂m) + 2x·G⊛(g·∂S/∂e) + y·G⊛(g·∂S/∂c), g = ∂L/∂S per pixel.
 #pragma once
 
-#include <utility>
 #include <vector>
 
 #include "metrics/gaussian_filter.h"
@@ -105,25 +104,27 @@ double SsimMeanAndGrad(const T* x, const T* y, int width, int height, int channe
   return sum / count;
 }
 
-// The mean SSIM of x against y for several pairs of constants (c1, c2) at once: the five
-// filtered maps depend only on the images, so they are computed once. Each mean is the
-// value SsimMeanAndGrad returns for those constants, bit for bit (the same arithmetic in the
-// same order). x, y: [height][width][channels]; `means` gets one value per pair.
-// Precondition (valid): width, height >= window.
-inline void SsimMeans(const double* x, const double* y, int width, int height, int channels, int window, double sigma,
-                      bool valid, const std::vector<std::pair<double, double>>& constants, std::vector<double>* means) {
-  const SsimMaps<double> maps(x, y, width, height, channels, GaussianTaps<double>(window, sigma));
-  const int r = valid ? window / 2 : 0;
+// The mean SSIM of x against y for several parameter sets at once, which differ only in their
+// constants (c1, c2): the five filtered maps depend only on the images and the window, so they
+// are computed once. Each mean is the value SsimMeanAndGrad returns for its set, bit for bit
+// (the same arithmetic in the same order). x, y: [height][width][channels]; `means` gets one
+// value per set. Preconditions: `params` is not empty and its sets share window, sigma and
+// valid; with valid, width, height >= window.
+inline void SsimMeans(const double* x, const double* y, int width, int height, int channels,
+                      const std::vector<SsimParams>& params, std::vector<double>* means) {
+  const SsimParams& shape = params.front();
+  const SsimMaps<double> maps(x, y, width, height, channels, GaussianTaps<double>(shape.window, shape.sigma));
+  const int r = shape.valid ? shape.window / 2 : 0;
   const int x0 = r, x1 = width - r, y0 = r, y1 = height - r;
   const double count = double(x1 - x0) * double(y1 - y0) * channels;
-  means->assign(constants.size(), 0.0);
-  for (size_t p = 0; p < constants.size(); ++p) {
-    const double c1 = constants[p].first, c2 = constants[p].second;
+  means->assign(params.size(), 0.0);
+  for (size_t p = 0; p < params.size(); ++p) {
     double sum = 0;
     for (int py = y0; py < y1; ++py) {
       for (int px = x0; px < x1; ++px) {
         for (int ch = 0; ch < channels; ++ch) {
-          const auto [a1, a2, b1, b2] = SsimTerms<double>(maps, (size_t(py) * width + px) * channels + ch, c1, c2);
+          const size_t i = (size_t(py) * width + px) * channels + ch;
+          const auto [a1, a2, b1, b2] = SsimTerms<double>(maps, i, params[p].c1, params[p].c2);
           sum += a1 * a2 / (b1 * b2);
         }
       }
