@@ -36,10 +36,11 @@ struct Param {
     ATEX_RETURN_IF_ERROR(m.Resize(n));
     return v.Resize(n);
   }
+  // `keep_value`: the device holds `values` already (a keyed load): only the rest is set.
   Status Upload(const std::vector<float>& values, const std::vector<float>& mm, const std::vector<float>& vv,
-                cudaStream_t stream) {
+                cudaStream_t stream, bool keep_value = false) {
     ATEX_RETURN_IF_ERROR(Resize(values.size()));
-    ATEX_RETURN_IF_ERROR(value.Upload(values, stream));
+    if (!keep_value) ATEX_RETURN_IF_ERROR(value.Upload(values, stream));
     ATEX_RETURN_IF_ERROR(grad.Zero(stream));
     if (mm.size() == values.size()) {
       ATEX_RETURN_IF_ERROR(m.Upload(mm, stream));
@@ -62,6 +63,7 @@ class CudaBackend final : public Backend {
   int MaxBatchViews() const override { return static_cast<int>(kMaxBatch); }
 
   Status Load(const ModelState& state) override;
+  Status LoadKeyed(const ModelState& state, const train::StateKeys& keys) override;
 
   Status Save(ModelState* state) override;
 
@@ -155,6 +157,11 @@ class CudaBackend final : public Backend {
 
   Status UploadLayout();
 
+  // Load and LoadKeyed (`keys` null: every array is copied).
+  Status LoadWith(const ModelState& state, const train::StateKeys* keys);
+  // The values changed (a step, an edit): no array is known by its key any more.
+  void ForgetHeldKeys() { held_keys_ = {}; }
+
   bool HasTarget(uint64_t image_key) const override { return targets_.count(image_key) != 0; }
 
   // Target images stay on the device (LRU, bounded), keyed by the view's image key.
@@ -189,6 +196,8 @@ class CudaBackend final : public Backend {
   bool has_deformation_ = false;
   DeformLayout deform_layout_;
   Param grid_, mlp_;
+  // The keys of the value arrays held, from the last LoadKeyed (zero: unknown; see ForgetHeldKeys).
+  train::StateKeys held_keys_;
   // Deformed Gaussians of the current view and their gradients.
   DeviceBuffer<float> d_positions_, d_log_scales_, d_rotations_, d_opacity_, d_sh_;
   DeviceBuffer<float> g_positions_, g_log_scales_, g_rotations_, g_opacity_, g_sh_;

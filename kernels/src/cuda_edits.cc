@@ -10,6 +10,7 @@
 namespace atex::cuda::internal {
 
 Status CudaBackend::ApplyEdit(const train::GaussianEdit& edit) {
+  ForgetHeldKeys();  // the values change
   const size_t m = edit.source.size();
   for (uint32_t s : edit.source) {
     if (s >= count_) return MakeError(StatusCode::kInvalidArgument, "edit source ", s, " of ", count_, " Gaussians");
@@ -79,6 +80,7 @@ Status CudaBackend::ApplyEdit(const train::GaussianEdit& edit) {
 }
 
 Status CudaBackend::AttachTextures(const TexturePool& layout) {
+  ForgetHeldKeys();  // the values change
   if (layout.size() != count_) {
     return MakeError(StatusCode::kInvalidArgument, "texture layout for ", layout.size(), " Gaussians, model has ",
                      count_);
@@ -101,6 +103,7 @@ Status CudaBackend::AttachTextures(const TexturePool& layout) {
 }
 
 Status CudaBackend::ResizeTextures(const train::TextureResize& resize) {
+  ForgetHeldKeys();  // the values change
   if (!has_textures_) return MakeError(StatusCode::kInvalidArgument, "resize of textures the model does not have");
   if (resize.heights.size() != count_ || resize.widths.size() != count_) {
     return MakeError(StatusCode::kInvalidArgument, "texture resize for ", resize.heights.size(),

@@ -8,45 +8,73 @@
 
 namespace atex::cuda::internal {
 
-Status CudaBackend::Load(const ModelState& state) {
+Status CudaBackend::Load(const ModelState& state) { return LoadWith(state, nullptr); }
+
+Status CudaBackend::LoadKeyed(const ModelState& state, const train::StateKeys& keys) { return LoadWith(state, &keys); }
+
+Status CudaBackend::LoadWith(const ModelState& state, const train::StateKeys* keys) {
+  const train::StateKeys held = held_keys_;
+  ForgetHeldKeys();  // until this load has finished
+  // An array is kept when its key is known and equals the one held (then so are its length and
+  // bytes: backend.h), and the device still holds such an array.
+  const auto kept = [&](train::StateKeys::Key train::StateKeys::*array) {
+    return keys != nullptr && (*keys).*array != train::StateKeys::Key{} && (*keys).*array == held.*array;
+  };
   const Gaussians& g = state.gaussians;
   count_ = g.size();
   sh_degree_ = g.sh_degree;
   sh_coeffs_ = g.sh_coeffs();
-  ATEX_RETURN_IF_ERROR(positions_.Upload(g.positions, state.m_gaussians.positions, state.v_gaussians.positions,
-                                         stream_));
-  ATEX_RETURN_IF_ERROR(rotations_.Upload(g.rotations, state.m_gaussians.rotations, state.v_gaussians.rotations,
-                                         stream_));
-  ATEX_RETURN_IF_ERROR(log_scales_.Upload(g.log_scales, state.m_gaussians.log_scales,
-                                          state.v_gaussians.log_scales, stream_));
+  ATEX_RETURN_IF_ERROR(positions_.Upload(g.positions, state.m_gaussians.positions, state.v_gaussians.positions, stream_,
+                                         kept(&train::StateKeys::positions)));
+  ATEX_RETURN_IF_ERROR(rotations_.Upload(g.rotations, state.m_gaussians.rotations, state.v_gaussians.rotations, stream_,
+                                         kept(&train::StateKeys::rotations)));
+  ATEX_RETURN_IF_ERROR(log_scales_.Upload(g.log_scales, state.m_gaussians.log_scales, state.v_gaussians.log_scales,
+                                          stream_, kept(&train::StateKeys::log_scales)));
   ATEX_RETURN_IF_ERROR(opacity_.Upload(g.opacity_logits, state.m_gaussians.opacity_logits,
-                                       state.v_gaussians.opacity_logits, stream_));
-  ATEX_RETURN_IF_ERROR(sh_.Upload(g.sh, state.m_gaussians.sh, state.v_gaussians.sh, stream_));
+                                       state.v_gaussians.opacity_logits, stream_, kept(&train::StateKeys::opacity)));
+  ATEX_RETURN_IF_ERROR(
+      sh_.Upload(g.sh, state.m_gaussians.sh, state.v_gaussians.sh, stream_, kept(&train::StateKeys::sh)));
+  const bool had_time_windows = has_time_windows_;
   has_time_windows_ = g.has_time_windows();
   if (has_time_windows_) {
     if (g.time_windows.size() != 2 * count_) {
       return MakeError(StatusCode::kInvalidArgument, "time_windows has ", g.time_windows.size(), " values for ",
                        count_, " Gaussians");
     }
-    ATEX_RETURN_IF_ERROR(time_windows_.Upload(g.time_windows, stream_));
+    if (!(had_time_windows && kept(&train::StateKeys::time_windows))) {
+      ATEX_RETURN_IF_ERROR(time_windows_.Upload(g.time_windows, stream_));
+    }
   } else {
     time_windows_ = DeviceBuffer<float>();
   }
 
+  const bool had_textures = has_textures_;
   has_textures_ = state.textures.has_value();
   if (has_textures_) {
-    layout_ = *state.textures;
-    layout_.texels.clear();
-    ATEX_RETURN_IF_ERROR(UploadLayout());
-    ATEX_RETURN_IF_ERROR(texels_.Upload(state.textures->texels, state.m_texels, state.v_texels, stream_));
+    const TexturePool& t = *state.textures;
+    const bool keep = had_textures && kept(&train::StateKeys::texels);
+    if (!keep) {
+      // The layout alone: the texels go to the device, not into a host copy.
+      layout_.heights = t.heights;
+      layout_.widths = t.widths;
+      layout_.axis_u = t.axis_u;
+      layout_.axis_v = t.axis_v;
+      layout_.offsets = t.offsets;
+      layout_.texels.clear();
+      ATEX_RETURN_IF_ERROR(UploadLayout());
+    }
+    ATEX_RETURN_IF_ERROR(texels_.Upload(t.texels, state.m_texels, state.v_texels, stream_, keep));
   }
+  const bool had_deformation = has_deformation_;
   has_deformation_ = state.deformation.has_value();
   if (has_deformation_) {
     deform_layout_ = DeformLayout::Make(state.deformation->config);
     ATEX_RETURN_IF_ERROR(grid_.Resize(deform_layout_.grid_size));
     ATEX_RETURN_IF_ERROR(mlp_.Resize(deform_layout_.mlp_size));
-    ATEX_RETURN_IF_ERROR(UploadDeformation(*state.deformation, deform_layout_, grid_.value.data(),
-                                           mlp_.value.data(), stream_));
+    if (!(had_deformation && kept(&train::StateKeys::deformation))) {
+      ATEX_RETURN_IF_ERROR(
+          UploadDeformation(*state.deformation, deform_layout_, grid_.value.data(), mlp_.value.data(), stream_));
+    }
     for (auto [moments, grid, mlp] : {std::tuple{&state.m_deformation, &grid_.m, &mlp_.m},
                                       std::tuple{&state.v_deformation, &grid_.v, &mlp_.v}}) {
       if (moments->has_value()) {
@@ -62,7 +90,9 @@ Status CudaBackend::Load(const ModelState& state) {
   adam_steps_ = state.adam_steps;
   ATEX_RETURN_IF_ERROR(ResetStats(train::kStatsAll));
   ATEX_CUDA_RETURN_IF_ERROR(cudaStreamSynchronize(stream_));
-  return TrackMemory();
+  ATEX_RETURN_IF_ERROR(TrackMemory());
+  if (keys != nullptr) held_keys_ = *keys;
+  return Status::Ok();
 }
 
 Status CudaBackend::Save(ModelState* state) {

@@ -273,6 +273,7 @@ Status CudaBackend::FlagNonFiniteGrads(const train::StepRequest& request, bool t
 }
 
 Status CudaBackend::ApplyAdam(const train::StepRequest& request, bool textured) {
+  ForgetHeldKeys();  // the values change (LoadKeyed copies every array again)
   const auto& lr = request.learning_rates;
   auto step = [&](Param& p, int group, float lr_first, float lr_rest, int period, int split) -> Status {
     if (lr_first == 0.0f && lr_rest == 0.0f) return Status::Ok();

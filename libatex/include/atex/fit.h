@@ -123,8 +123,10 @@ class ProbeRenderer {
   // Renders every probe, as Render, from an asset's render state and request
   // (train::RenderStateFromAsset, train::RenderRequestFor), which a caller can build on
   // another thread beforehand. GPU backends only: kUnsupported on the CPU renderer
-  // (cpu_renderer() not null), which renders assets.
-  StatusOr<std::vector<Image>> RenderState(const train::ModelState& state, const train::RenderRequest& request);
+  // (cpu_renderer() not null), which renders assets. `keys` (may be null): the content keys of
+  // the state's arrays, so that the backend keeps the arrays it holds (Backend::LoadKeyed).
+  StatusOr<std::vector<Image>> RenderState(const train::ModelState& state, const train::RenderRequest& request,
+                                           const train::StateKeys* keys = nullptr);
   // EnsureImportance over this renderer's probes; on the CPU its deformations stay
   // cached for the plan's renders of the same asset.
   Status EnsureImportance(Asset* asset);
@@ -134,17 +136,22 @@ class ProbeRenderer {
     uint64_t tiles_drawn = 0, tiles_reused = 0; // (probe, tile) composited / taken from the cache
   };
   CacheCounts cache_counts() const;
+  // Seconds spent loading render states onto the backend (train::Backend::Load) since
+  // construction: of a GPU probe render, the upload, not the renders.
+  double load_seconds() const { return load_seconds_; }
   // The CPU renderer (null on a GPU backend): the fitter renders its candidates
   // incrementally through it (src/fit/incremental_probes.h).
   internal::CpuProbeRenderer* cpu_renderer() { return cpu_.get(); }
 
  private:
   StatusOr<std::vector<Image>> RenderOnBackend(const train::ModelState& state, const train::RenderRequest& request,
-                                               const std::vector<Camera>& cameras);
+                                               const std::vector<Camera>& cameras,
+                                               const train::StateKeys* keys = nullptr);
 
   train::Backend* backend_;
   std::vector<Probe> probes_;
   std::unique_ptr<internal::CpuProbeRenderer> cpu_;  // when backend_ is null or the CPU backend
+  double load_seconds_ = 0;
 };
 
 // Mean over images of the per-pixel, per-channel squared difference (renders clamped to [0, 1]).
@@ -190,13 +197,18 @@ struct MeasureTiming {
   // (PlanOptions::parallel_candidates > 1), and of those the ones dropped because a move was
   // taken first (their apply, encode and decode seconds are counted above all the same).
   int prepared_ahead = 0, prepared_unused = 0;
+  // On a GPU backend, the next steps prepared at a candidate's state before it was taken (its
+  // lever's next move), and of those the ones the plan used (the candidate was taken).
+  int next_steps_prepared = 0, next_steps_used = 0;
   double apply_seconds = 0;       // applying candidate moves to a copy of the state
   double encode_seconds = 0;      // EncodeAsset (through the chunk cache)
   double decode_seconds = 0;      // DecodeAsset of those bytes
-  // On a GPU backend, the decoded candidate's render state (train::RenderStateFromAsset),
-  // built while preparing so that it runs beside other preparations, not before each render.
+  // On a GPU backend, the decoded candidate's render state (train::RenderStateFromAsset) and
+  // its arrays' content keys (Backend::LoadKeyed), built while preparing so that it runs beside
+  // other preparations, not before each render.
   double render_state_seconds = 0;
   double render_seconds = 0;      // probe renders: backend load + one render per probe
+  double render_load_seconds = 0;  // the backend's loads in the plan's renders (the reference's too; GPU backends)
   double distortion_seconds = 0;  // MeanSquaredError against the reference renders
   double reference_seconds = 0;   // the input's reference renders (once per plan)
   double propose_seconds = 0;     // listing the candidate moves of each state (Proposals)

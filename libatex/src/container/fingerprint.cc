@@ -2,6 +2,9 @@
 #include "container/fingerprint.h"
 
 #include <cstring>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 namespace atex::container {
 namespace {
@@ -55,6 +58,24 @@ FingerprintBuilder& FingerprintBuilder::Add(const void* data, size_t bytes) {
 
 Fingerprint FingerprintBuilder::Finish() const {
   return Fingerprint{Fold(a_ ^ kFinishA, spans_ ^ kMixB), Fold(b_ ^ kFinishB, spans_ ^ kMixA)};
+}
+
+Fingerprint BlockFingerprint(const void* data, size_t bytes) {
+  const auto* p = static_cast<const uint8_t*>(data);
+  const int64_t blocks = bytes >= (size_t{4} << 20) ? 64 : 1;
+  std::vector<Fingerprint> parts(static_cast<size_t>(blocks));
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static) if (blocks > 1 && !omp_in_parallel())
+#endif
+  for (int64_t b = 0; b < blocks; ++b) {
+    const size_t begin = bytes * static_cast<size_t>(b) / static_cast<size_t>(blocks);
+    const size_t end = bytes * static_cast<size_t>(b + 1) / static_cast<size_t>(blocks);
+    parts[static_cast<size_t>(b)] = FingerprintBuilder().Add(p + begin, end - begin).Finish();
+  }
+  FingerprintBuilder whole;
+  whole.AddValue(uint64_t{bytes});
+  for (const Fingerprint& part : parts) whole.AddValue(part);
+  return whole.Finish();
 }
 
 }  // namespace atex::container

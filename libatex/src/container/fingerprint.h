@@ -43,4 +43,9 @@ class FingerprintBuilder {
   uint64_t spans_ = 0;
 };
 
+// A fingerprint of a long span, from blocks hashed on several threads (OpenMP) for spans of
+// 4 MiB or more, then the blocks' fingerprints in order. Not FingerprintBuilder().Add(data,
+// bytes).Finish(): the two are different functions of the bytes.
+Fingerprint BlockFingerprint(const void* data, size_t bytes);
+
 }  // namespace atex::container

@@ -3,9 +3,6 @@
 #include "container/read_back.h"
 
 #include <functional>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #include "container/attribute_stream.h"
 #include "container/chunks.h"
@@ -46,25 +43,12 @@ namespace {
 // The streams a cache keeps apart.
 enum Stream : int { kPositions, kRotations, kLogScales, kOpacities, kSh, kTexels };
 
-// A fingerprint of `values` and what their read back depends on (`tags`): blocks hashed on
-// several threads for long arrays, then the blocks' fingerprints in order.
+// A fingerprint of `values` and what their read back depends on (`tags`).
 Fingerprint KeyOf(const std::vector<float>& values, std::initializer_list<uint64_t> tags) {
-  const size_t n = values.size();
-  const int64_t blocks = n >= (size_t{1} << 20) ? 64 : 1;
-  std::vector<Fingerprint> parts(static_cast<size_t>(blocks));
-#ifdef _OPENMP
-#pragma omp parallel for schedule(static) if (blocks > 1 && !omp_in_parallel())
-#endif
-  for (int64_t b = 0; b < blocks; ++b) {
-    const size_t begin = n * static_cast<size_t>(b) / static_cast<size_t>(blocks);
-    const size_t end = n * static_cast<size_t>(b + 1) / static_cast<size_t>(blocks);
-    parts[static_cast<size_t>(b)] =
-        FingerprintBuilder().Add(values.data() + begin, (end - begin) * sizeof(float)).Finish();
-  }
   FingerprintBuilder key;
   for (uint64_t tag : tags) key.AddValue(tag);
-  key.AddValue(uint64_t{n});
-  for (const Fingerprint& part : parts) key.AddValue(part);
+  key.AddValue(uint64_t{values.size()});
+  key.AddValue(BlockFingerprint(values.data(), values.size() * sizeof(float)));
   return key.Finish();
 }
 

@@ -26,15 +26,14 @@ StatusOr<State> ApplyRange(const State& start, const Plan& plan, const std::vect
       ATEX_ASSIGN_OR_RETURN(state, AppliedTo(start, m, plan.prune_order, plan.min_grid_resolution));
       continue;
     }
-    ATEX_RETURN_IF_ERROR(ApplyMove(m, plan.prune_order, &state->asset, &state->write, &state->kept,
-                                   plan.min_grid_resolution, state->memo.get()));
+    ATEX_RETURN_IF_ERROR(ApplyInPlace(m, plan.prune_order, plan.min_grid_resolution, &*state));
   }
   if (!state) return CopyState(start);
   return std::move(*state);
 }
 
 State InitialState(const Asset& asset, const WriteOptions& write) {
-  State s{CopyAsset(asset), write, {}, std::make_shared<TextureShrinkMemo>()};
+  State s{CopyAsset(asset), write, {}, std::make_shared<TextureShrinkMemo>(), nullptr};
   s.kept.resize(asset.gaussians.size());
   std::iota(s.kept.begin(), s.kept.end(), 0u);
   return s;
@@ -73,6 +72,7 @@ StatusOr<Fitted> SmallestFallback(const Asset& asset, const Plan& plan, const Wr
 
 }  // namespace internal
 
+using internal::ApplyInPlace;
 using internal::CopyState;
 using internal::FinishOutput;
 using internal::InitialState;
@@ -129,8 +129,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
       if (tail != nullptr) state = initial_state();
       for (size_t k = 0; k < j; ++k) {
         if (k == checkpoint_index) checkpoint = CopyState(state);
-        ATEX_RETURN_IF_ERROR(ApplyMove(plan.moves[k], plan.prune_order, &state.asset, &state.write, &state.kept,
-                                       plan.min_grid_resolution, state.memo.get()));
+        ATEX_RETURN_IF_ERROR(ApplyInPlace(plan.moves[k], plan.prune_order, plan.min_grid_resolution, &state));
         out.moves.push_back(plan.moves[k]);
       }
     }
@@ -149,8 +148,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
           last.count, internal::SmallestFittingCount(0, before, last.count, last.bytes_after, budget_bytes, bytes_at,
                                                      nullptr, internal::EnoughSlack(budget_bytes)));
     }
-    ATEX_RETURN_IF_ERROR(ApplyMove(last, plan.prune_order, &state.asset, &state.write, &state.kept,
-                                   plan.min_grid_resolution, state.memo.get()));
+    ATEX_RETURN_IF_ERROR(ApplyInPlace(last, plan.prune_order, plan.min_grid_resolution, &state));
     ATEX_ASSIGN_OR_RETURN(bytes, encode(state));
     last.bytes_after = bytes.size();
     out.moves.push_back(last);

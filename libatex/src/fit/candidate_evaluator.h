@@ -16,6 +16,7 @@
 #include "measure.h"
 #include "plan_state.h"
 #include "preparation_pool.h"
+#include "proposals.h"
 
 namespace atex::fit::internal {
 
@@ -32,8 +33,9 @@ struct Evaluated {
   bool prepared = false;  // false: not a move at this state (cost stays kNoGain)
   // The state after the move (kept only for the best fresh evaluation): `next`, or for an
   // encoding move, which changes only the write options, the state it was prepared at (`base`)
-  // with `write`: its asset is copied only when the move is taken (Next).
-  std::optional<State> next;
+  // with `write`: its asset is copied only when the move is taken (Next). `next` is shared: the
+  // preparation of the lever's next step may read it already (CandidateEvaluator's follow-ups).
+  std::shared_ptr<const State> next;
   std::shared_ptr<const State> base;
   WriteOptions write;
   Candidate candidate;    // its measurement and decode
@@ -41,11 +43,11 @@ struct Evaluated {
   StateRef Ref() const {
     return next ? StateRef(*next) : StateRef(base->asset, write, base->kept);
   }
-  State Next() && {
-    if (next) return std::move(*next);
+  std::shared_ptr<const State> Next() && {
+    if (next) return std::move(next);
     State s = CopyState(*base);  // on several threads: the plan waits for it
     s.write = write;
-    return s;
+    return std::make_shared<const State>(std::move(s));
   }
 };
 inline bool Better(const Cached& a, const Cached& b) {
@@ -80,16 +82,29 @@ struct Pending {
 // and a move is taken without waiting for the speculative preparations it makes useless (they
 // are cancelled, or finish unused). Otherwise (the CPU) each wave is prepared whole, then scored,
 // and nothing is prepared while a move is taken.
+//
+// Next steps prepared ahead (GPU backends, once the plan has taken its first move): as soon as a
+// candidate's state exists, the preparation of its lever's next step at that state starts
+// beside it (NextStepAfter, with the step scale the plan will have then). A taken move's lever
+// always proposes its next step at once, so when the candidate is taken, the plan's next wave
+// asks for that very preparation (the same move at the same state) and takes it instead of
+// starting again; the next step of a next step taken that way starts in turn, so a lever that
+// keeps winning is prepared a move ahead. A content candidate's state is its own object; an
+// encoding candidate's is the state it was prepared at with other write options (the plan copies
+// it only when the move is taken, Evaluated::Next), so its next step is prepared at that state
+// with those options, and moves to the copy when the move is taken (Taken). They are queued
+// before the spares, and the pool has one worker more for them. Those made at another state are
+// cancelled when a move is taken. The plan is the same with or without them: a preparation
+// depends only on its state's content and its move.
 class CandidateEvaluator {
  public:
+  // `state`, `current` and `scale` are BuildPlan's, read at each call.
   CandidateEvaluator(const PlanOptions& options, Plan* plan, Measurer* measurer,
-                     const std::shared_ptr<const State>* state, const Measured* current)
-      : options_(options), plan_(plan), measurer_(measurer), state_(state), current_(current),
-        width_(CandidatesAtOnce(options, (*state)->asset)), beside_(measurer->PreparesBesideScores()),
-        pool_(width_ > 1 ? width_ : 0) {}
+                     const std::shared_ptr<const State>* state, const Measured* current, const StepScale* scale);
 
-  // Evaluates `proposals`, at most `width_` prepared at a time, and hands each to `remember` in
-  // order. `spare` (proposals likely to be evaluated next at this state) fill the last wave's
+  // Evaluates `proposals`, at most `width_` prepared at a time (before the first move, one more
+  // where the pool keeps a worker for next steps, which are not prepared yet), and hands each to
+  // `remember` in order. `spare` (proposals likely to be evaluated next at this state) fill the last wave's
   // free places: they are prepared, not scored, and handed to `stash` as pending (errors
   // included) for later.
   template <typename Remember, typename Stash>
@@ -99,7 +114,8 @@ class CandidateEvaluator {
     size_t next = 0;
     std::deque<Pending> window;  // submitted, not yet scored
     const auto submit = [&] {
-      while (next < proposals.size() && window.size() < width_) window.push_back(Submit(*proposals[next++], true));
+      const size_t at_once = moved_ ? width_ : std::max(width_, pool_.workers());
+      while (next < proposals.size() && window.size() < at_once) window.push_back(Submit(*proposals[next++], true));
       if (next == proposals.size()) {
         for (size_t i = 0; i < spares; ++i) stash(*spare[i], Submit(*spare[i], false));
         next = proposals.size() + 1;  // spares submitted
@@ -124,6 +140,12 @@ class CandidateEvaluator {
   // Drops a pending preparation that will not be used.
   void Drop(const Pending& pending);
 
+  // A move was taken (`state` and `scale` are the new ones): the next steps prepared at other
+  // states are cancelled, and from now on candidates get theirs (where the measurer prepares
+  // beside scores and the memory holds them). For an encoding move, `from` is the state it was
+  // prepared at and `write` its write options: the new state is a copy of `from` with `write`.
+  void Taken(const State* from = nullptr, const WriteOptions* write = nullptr);
+
   // Waits for every preparation; then the timings are complete.
   void Finish();
 
@@ -143,22 +165,70 @@ class CandidateEvaluator {
     waited_ += clock.Lap();
   }
 
+  // What a preparation knows of the next step after its move: the step scale before its move,
+  // whether it may start that next step (the plan submitted or took it) and, once applied, its
+  // state. Guarded by next_mutex_.
+  struct Line {
+    Move move;
+    const State* base = nullptr;  // the state it is prepared at (for matching)
+    StepScale scale;
+    bool spare = false;  // prepared in case a refresh needs it (the plan does not wait for it)
+    bool may_follow = false;
+    bool followed = false;  // its next step was started, or cannot be
+    // Its state, until its next step starts: `after`, written with `after_write` when set (an
+    // encoding move: `after` is the state it was prepared at).
+    std::shared_ptr<const State> after;
+    std::optional<WriteOptions> after_write;
+  };
+  // A next step being prepared at the state of the candidate before it: `at`, or for an encoding
+  // candidate not yet taken `at` with `write`.
+  struct NextStep {
+    std::shared_ptr<const State> at;
+    std::optional<WriteOptions> write;
+    Move move;
+    Pending pending;
+    std::shared_ptr<Line> line;
+    bool after_spare = false;  // the next step of a spare
+  };
+
+  // Starts the preparation of `proposal` at `at` (with `write` in place of its write options
+  // when set); `line` (may be null) gets its state.
+  Pending Start(const std::shared_ptr<const State>& at, const Move& proposal, std::shared_ptr<Line> line,
+                PreparationPool::Priority priority, std::optional<WriteOptions> write = std::nullopt);
+  // The next step prepared at the current state for `proposal`, taken out, or nothing.
+  std::optional<Pending> TakeNextStep(const Move& proposal);
+  // The preparation of `line`'s next step starts, when it may and its state exists.
+  void FollowLocked(const std::shared_ptr<Line>& line);
+  // Cancels the next steps not prepared at `at` (all for null).
+  void CancelNextStepsLocked(const State* at);
+
   // Thread-safe: several run at once. An exception becomes the candidate's error.
-  StatusOr<Evaluated> Prepare(const std::shared_ptr<const State>& at, const Move& proposal);
-  // The move applied to `at` (an encoding move: `at` itself with other write options), then
-  // the Measurer's preparation.
-  StatusOr<Evaluated> PrepareAt(const std::shared_ptr<const State>& at, const Move& proposal);
+  StatusOr<Evaluated> Prepare(const std::shared_ptr<const State>& at, const std::optional<WriteOptions>& write,
+                              const Move& proposal, const std::shared_ptr<Line>& line);
+  // The move applied to `at` (an encoding move: `at` itself with other write options: `write`,
+  // when set, or its own, with the move's encoding), then the Measurer's preparation.
+  StatusOr<Evaluated> PrepareAt(const std::shared_ptr<const State>& at, const std::optional<WriteOptions>& write,
+                                const Move& proposal, const std::shared_ptr<Line>& line);
 
   const PlanOptions& options_;
   Plan* plan_;
   Measurer* measurer_;
   const std::shared_ptr<const State>* state_;
   const Measured* current_;
+  const StepScale* scale_;
   const size_t width_;
   const bool beside_;      // measurer_->PreparesBesideScores()
+  // Next steps may be prepared ahead: beside_, and the memory holds their candidates too.
+  const bool may_prepare_next_;
   std::mutex mutex_;       // the timing sums written by preparations running at once
   double busy_ = 0;        // summed preparation seconds
   double waited_ = 0;      // seconds BuildPlan's thread spent in Wait
+  std::mutex next_mutex_;  // the next steps and their lines
+  bool next_steps_on_ = false;  // set by Taken, cleared by Finish
+  bool moved_ = false;          // a move was taken (set by Taken; read on the plan's thread only)
+  const State* current_at_;     // *state_, as of the last Taken
+  std::vector<NextStep> next_steps_;
+  int next_steps_started_ = 0, next_steps_used_ = 0;
   PreparationPool pool_;   // last: destroyed (its running tasks finished) before the rest
 };
 

@@ -186,6 +186,7 @@ TEST(Plan, TheSamePlanWhateverTheCandidatesPreparedAtOnce) {
   ExpectSameMoves(serial.plan, parallel.plan);
   EXPECT_EQ(serial.plan.timing.measurements, parallel.plan.timing.measurements);
   EXPECT_EQ(serial.plan.timing.overlap_seconds, 0.0);
+  EXPECT_EQ(serial.plan.timing.render_load_seconds, 0.0);  // the CPU renders assets, loads nothing
   // The parallel plan prepared stale proposals ahead of their refresh and used some of them.
   EXPECT_EQ(serial.plan.timing.prepared_ahead, 0);
   EXPECT_GT(parallel.plan.timing.prepared_ahead, parallel.plan.timing.prepared_unused);
@@ -200,8 +201,43 @@ TEST(Plan, ScoringBesidePreparationsGivesTheSamePlan) {
   ExpectSameMoves(serial.plan, parallel.plan);
   EXPECT_EQ(serial.plan.timing.measurements, parallel.plan.timing.measurements);
   EXPECT_GT(serial.plan.timing.render_state_seconds, 0.0);  // the GPU path's render states
+  EXPECT_GT(serial.plan.timing.render_load_seconds, 0.0);   // and their loads onto the backend
+  EXPECT_LT(serial.plan.timing.render_load_seconds,
+            serial.plan.timing.render_seconds + serial.plan.timing.reference_seconds);
   EXPECT_EQ(serial.plan.timing.prepared_ahead, 0);
   EXPECT_GT(parallel.plan.timing.prepared_ahead, parallel.plan.timing.prepared_unused);
+  // Next steps were prepared at candidates' states, and the plan took some of them.
+  EXPECT_EQ(serial.plan.timing.next_steps_prepared, 0);
+  EXPECT_GT(parallel.plan.timing.next_steps_used, 0);
+  EXPECT_LE(parallel.plan.timing.next_steps_used, parallel.plan.timing.next_steps_prepared);
+}
+
+// The plan of `levers` on the GPU path with four candidates at once (next steps prepared
+// ahead), checked against the serial plan move for move.
+Plan AheadMatchingTheSerialPlan(LeverSet levers) {
+  const Planned serial = PlanWith(1, 2.0, levers, true);
+  Planned ahead = PlanWith(4, 2.0, levers, true);
+  EXPECT_GE(serial.plan.moves.size(), 4u);
+  ExpectSameMoves(serial.plan, ahead.plan);
+  EXPECT_EQ(serial.plan.timing.measurements, ahead.plan.timing.measurements);
+  EXPECT_EQ(serial.plan.timing.next_steps_prepared, 0);
+  return std::move(ahead.plan);
+}
+
+TEST(Plan, NextStepsPreparedAheadFollowALeverThatKeepsWinning) {
+  // Textures alone: after the first move every move is the texture lever's next step, prepared
+  // at the state of the candidate before it (its own next step started once the plan took it),
+  // with the step scale the plan has then. Every proposal after the second move was such a next
+  // step, but a proposal that the state no longer has (nothing left to halve) prepares nothing.
+  const Plan ahead = AheadMatchingTheSerialPlan(LeverBit(Lever::kTextures));
+  EXPECT_GE(ahead.timing.next_steps_used, static_cast<int>(ahead.moves.size()) - 2);
+}
+
+TEST(Plan, NextStepsOfEncodingMovesArePreparedAtTheStateTheyWerePreparedAt) {
+  // Encodings alone: an encoding candidate's state is the state it was prepared at with other
+  // write options, copied only once it is taken; its stream's next encoding is prepared at that
+  // state with those options and moves to the copy.
+  EXPECT_GT(AheadMatchingTheSerialPlan(LeverBit(Lever::kEncoding)).timing.next_steps_used, 0);
 }
 
 TEST(Plan, ALeverThatKeepsWinningTakesGrowingSteps) {

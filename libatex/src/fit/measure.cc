@@ -4,6 +4,8 @@
 #include <numeric>
 
 #include "atex/train/trainer.h"
+#include "container/chunks.h"
+#include "container/fingerprint.h"
 #include "cpu_probes.h"
 
 namespace atex::fit::internal {
@@ -73,12 +75,59 @@ StatusOr<Candidate> Measurer::EncodeAndDecode(StateRef state) {
   return c;
 }
 
+namespace {
+
+train::StateKeys::Key KeyOf(const container::Fingerprint& f) { return {f.a, f.b}; }
+
+train::StateKeys::Key KeyOf(const std::vector<float>& values) {
+  return KeyOf(container::BlockFingerprint(values.data(), values.size() * sizeof(float)));
+}
+
+// The keys of a render state's value arrays (GPU backends keep those they hold already:
+// Backend::LoadKeyed). A candidate changes one or two of them.
+train::StateKeys RenderKeys(const train::ModelState& state) {
+  const Gaussians& g = state.gaussians;
+  train::StateKeys keys;
+  keys.positions = KeyOf(g.positions);
+  keys.rotations = KeyOf(g.rotations);
+  keys.log_scales = KeyOf(g.log_scales);
+  keys.opacity = KeyOf(g.opacity_logits);
+  container::FingerprintBuilder sh;
+  sh.AddValue(int32_t{g.sh_degree}).AddValue(container::BlockFingerprint(g.sh.data(), g.sh.size() * sizeof(float)));
+  keys.sh = KeyOf(sh.Finish());
+  keys.time_windows = KeyOf(g.time_windows);
+  if (state.textures) {
+    const TexturePool& t = *state.textures;
+    container::FingerprintBuilder texels;
+    texels.Add(t.heights).Add(t.widths).Add(t.axis_u).Add(t.axis_v);
+    texels.AddValue(container::BlockFingerprint(t.texels.data(), t.texels.size() * sizeof(float)));
+    keys.texels = KeyOf(texels.Finish());
+  }
+  if (state.deformation) {
+    const DeformationField& d = *state.deformation;
+    container::FingerprintBuilder field;
+    field.Add(container::EncodeDeformationConfig(d.config));
+    for (const auto& scale : d.planes)
+      for (const std::vector<float>& plane : scale) field.Add(plane);
+    const auto add_linear = [&](const Linear& l) { field.AddValue(l.in).AddValue(l.out).Add(l.weight).Add(l.bias); };
+    for (const Linear& l : d.trunk) add_linear(l);
+    for (const auto& head : d.heads)
+      for (const Linear& l : head) add_linear(l);
+    keys.deformation = KeyOf(field.Finish());
+  }
+  return keys;
+}
+
+}  // namespace
+
 StatusOr<double> Measurer::Distortion(const Candidate& candidate, const CandidateMap& map,
                                       std::shared_ptr<const IncrementalProbes::Pending>* pending) {
   Stopwatch clock;
   StatusOr<std::vector<Image>> renders = [&]() -> StatusOr<std::vector<Image>> {
     if (incremental_) return incremental_->Render(candidate.decoded, map, pending);
-    if (candidate.render_state) return renderer_->RenderState(*candidate.render_state, candidate.request);
+    if (candidate.render_state) {
+      return renderer_->RenderState(*candidate.render_state, candidate.request, &candidate.render_keys);
+    }
     return renderer_->Render(candidate.decoded);
   }();
   if (!renders.ok()) return renders.status();
@@ -143,6 +192,7 @@ StatusOr<Candidate> Measurer::Prepare(StateRef next, const Move& move) {
       c.decoded.deformation.reset();
       c.render_state = std::move(state);
     }
+    c.render_keys = RenderKeys(*c.render_state);
     const double seconds = clock.Lap();
     std::lock_guard<std::mutex> lock(timing_mutex_);
     timing_->render_state_seconds += seconds;

@@ -70,6 +70,7 @@ struct Candidate {
   // and how to render it. Unless the Measurer keeps decodes, the render state takes `decoded`'s
   // arrays (moved, not copied) and `decoded` keeps only its metadata.
   std::shared_ptr<const train::ModelState> render_state;
+  train::StateKeys render_keys;  // of render_state's arrays: the backend keeps those it holds
   train::RenderRequest request;
 };
 

@@ -96,7 +96,17 @@ StatusOr<Asset> KeepMostImportant(const Asset& asset, const std::vector<uint32_t
 
 namespace internal {
 
-State CopyState(const State& state) { return State{CopyAsset(state.asset), state.write, state.kept, state.memo}; }
+State CopyState(const State& state) {
+  return State{CopyAsset(state.asset), state.write, state.kept, state.memo, state.texture_residuals};
+}
+
+Status ApplyInPlace(const Move& move, const std::vector<uint32_t>& prune_order, int min_grid_resolution, State* state) {
+  if (move.lever == Lever::kPrune || move.lever == Lever::kTextures || move.lever == Lever::kAllTextures) {
+    state->texture_residuals = nullptr;
+  }
+  return ApplyMove(move, prune_order, &state->asset, &state->write, &state->kept, min_grid_resolution,
+                   state->memo.get());
+}
 
 StatusOr<State> AppliedTo(const State& from, const Move& move, const std::vector<uint32_t>& prune_order,
                           int min_grid_resolution) {
@@ -107,20 +117,29 @@ StatusOr<State> AppliedTo(const State& from, const Move& move, const std::vector
     next.asset = SubsetGaussians(from.asset, keep);
     next.write = from.write;
     next.memo = from.memo;
+    if (const PoolResiduals* r = from.texture_residuals.get()) {  // one texture per Gaussian
+      auto kept_residuals = std::make_shared<PoolResiduals>();
+      kept_residuals->reserve(next.kept.size());
+      for (size_t i = 0; i < keep.size(); ++i)
+        if (keep[i]) kept_residuals->push_back((*r)[i]);
+      next.texture_residuals = std::move(kept_residuals);
+    }
     return next;
   }
   if (move.lever == Lever::kTextures && from.asset.textures) {
     // The shrunk pool is built from `from`'s: a copy of the input pool would be replaced whole.
-    State next{CopyAsset(from.asset, /*with_texture_pool=*/false), from.write, from.kept, from.memo};
+    State next{CopyAsset(from.asset, /*with_texture_pool=*/false), from.write, from.kept, from.memo, nullptr};
     TexturePool pool;
-    ATEX_ASSIGN_OR_RETURN(const uint64_t done, ShrinkTexturePool(from.asset, move.count, from.memo.get(), &pool));
+    auto residuals = std::make_shared<PoolResiduals>();
+    ATEX_ASSIGN_OR_RETURN(const uint64_t done, ShrinkTexturePool(from.asset, move.count, from.memo.get(), &pool,
+                                                                 from.texture_residuals.get(), residuals.get()));
     next.asset.textures = std::move(pool);
+    next.texture_residuals = std::move(residuals);
     MarkTexturesShrunk(&next.asset, done);
     return next;
   }
   State next = CopyState(from);
-  ATEX_RETURN_IF_ERROR(ApplyMove(move, prune_order, &next.asset, &next.write, &next.kept, min_grid_resolution,
-                                 next.memo.get()));
+  ATEX_RETURN_IF_ERROR(ApplyInPlace(move, prune_order, min_grid_resolution, &next));
   return next;
 }
 

@@ -6,7 +6,6 @@
 #include <map>
 #include <memory>
 #include <optional>
-#include <tuple>
 
 #include "atex/file_io.h"
 #include "atex/fit.h"
@@ -14,6 +13,7 @@
 #include "levers.h"
 #include "measure.h"
 #include "plan_state.h"
+#include "proposals.h"
 #include "texture_shrink.h"
 
 namespace atex::fit {
@@ -24,96 +24,19 @@ using internal::Candidate;
 using internal::CandidateEvaluator;
 using internal::Evaluated;
 using internal::InitialState;
+using internal::KeyOf;
 using internal::kNoGain;
 using internal::Measured;
 using internal::Measurer;
-using internal::PlanTail;
+using internal::MoveKey;
 using internal::Pending;
+using internal::PlanTail;
+using internal::Proposals;
 using internal::State;
+using internal::StepScale;
 using internal::Stopwatch;
 
 namespace {
-
-// Step multipliers of the divisible levers (PlanOptions::step_growth): 1 until a lever wins
-// twice in a row.
-struct StepScale {
-  double prune = 1, textures = 1;
-  std::optional<Lever> last;  // the lever of the last move taken
-
-  // A divisible lever that wins again takes a larger step next time; any other move resets.
-  void Taken(Lever lever, double growth) {
-    const bool again = last == lever;
-    if (!again) prune = textures = 1;
-    if (again && lever == Lever::kPrune) prune = std::min(prune * growth, 1e6);
-    if (again && lever == Lever::kTextures) textures = std::min(textures * growth, 1e6);
-    last = lever;
-  }
-};
-
-// The next move of every lever at `state` (prune and texture counts sized to the state and
-// the lever's step scale).
-std::vector<Move> Proposals(const State& state, const PlanOptions& o, const StepScale& scale) {
-  std::vector<Move> moves;
-  const Asset& a = state.asset;
-  const size_t n = a.gaussians.size();
-  const auto allowed = [&](Lever lever) { return HasLever(o.levers, lever); };
-  if (allowed(Lever::kPrune) && n > 1) {
-    Move m;
-    m.lever = Lever::kPrune;
-    const double fraction = std::min(o.prune_fraction * scale.prune, std::max(o.prune_fraction, 0.5));
-    m.count = std::clamp<uint64_t>(static_cast<uint64_t>(fraction * static_cast<double>(n)), 1, n - 1);
-    moves.push_back(m);
-  }
-  if (allowed(Lever::kAllTextures) && a.textures && ShrinkableTexels(*a.textures) > 0) {
-    Move m;
-    m.lever = Lever::kAllTextures;
-    moves.push_back(m);
-  }
-  if (allowed(Lever::kTextures) && a.textures && ShrinkableTexels(*a.textures) > 0) {
-    uint64_t growable = 0;
-    for (size_t i = 0; i < a.textures->size(); ++i) growable += a.textures->heights[i] * a.textures->widths[i] > 1;
-    Move m;
-    m.lever = Lever::kTextures;
-    const double fraction = std::min(o.texture_fraction * scale.textures, 1.0);
-    m.count = std::max<uint64_t>(1, static_cast<uint64_t>(fraction * static_cast<double>(growable)));
-    moves.push_back(m);
-  }
-  if (allowed(Lever::kShDegree) && a.gaussians.sh_degree > 0) {
-    Move m;
-    m.lever = Lever::kShDegree;
-    moves.push_back(m);
-  }
-  for (int s = 0; allowed(Lever::kEncoding) && s < static_cast<int>(Stream::kCount); ++s) {
-    const auto stream = static_cast<Stream>(s);
-    if (stream == Stream::kShRest && a.gaussians.sh_degree == 0) continue;
-    if (stream == Stream::kTexels && !a.textures) continue;
-    if (stream == Stream::kDeformationGrids && !a.deformation) continue;
-    const ScalarEncoding current = GetEncoding(state.write, stream);
-    std::vector<ScalarEncoding> next;
-    if (current == ScalarEncoding::kFloat32) next = {ScalarEncoding::kFloat16, ScalarEncoding::kQuant16};
-    if (current == ScalarEncoding::kFloat16 || current == ScalarEncoding::kQuant16) next = {ScalarEncoding::kQuant8};
-    for (ScalarEncoding e : next) {
-      Move m;
-      m.lever = Lever::kEncoding;
-      m.stream = stream;
-      m.encoding = e;
-      moves.push_back(m);
-    }
-  }
-  if (allowed(Lever::kGrid) && CanCoarsenGrid(a, o.min_grid_resolution)) {
-    Move m;
-    m.lever = Lever::kGrid;
-    moves.push_back(m);
-  }
-  return moves;
-}
-
-// Identity of a proposal across states (counts change with the state, the kind does not).
-using MoveKey = std::tuple<int, int, int>;
-MoveKey KeyOf(const Move& m) {
-  return {static_cast<int>(m.lever), m.lever == Lever::kEncoding ? static_cast<int>(m.stream) : -1,
-          m.lever == Lever::kEncoding ? static_cast<int>(m.encoding) : -1};
-}
 
 // kInvalidArgument for options or probes a plan cannot be built with.
 Status CheckPlanInputs(const ProbeRenderer& renderer, const PlanOptions& options) {
@@ -226,12 +149,22 @@ size_t TailContentStates(const Asset& asset) {
   return static_cast<size_t>(std::clamp<uint64_t>(fit, 2, 8));
 }
 
+// Makes the taken evaluation's state the current one (`*state`) and tells the evaluator. An
+// encoding move's state is a copy of the state it was prepared at, with its write options.
+void MakeCurrent(Evaluated&& taken, std::shared_ptr<const State>* state, CandidateEvaluator* evaluator) {
+  const std::shared_ptr<const State> from = taken.next ? nullptr : taken.base;
+  const WriteOptions write = taken.write;
+  *state = std::move(taken).Next();
+  evaluator->Taken(from.get(), from ? &write : nullptr);
+}
+
 }  // namespace
 
 StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const PlanOptions& options) {
   ATEX_RETURN_IF_ERROR(CheckPlanInputs(*renderer, options));
   ATEX_RETURN_IF_ERROR(ValidateAsset(asset));
   const ProbeRenderer::CacheCounts before = renderer->cache_counts();
+  const double loads_before = renderer->load_seconds();
   Plan plan;
   Stopwatch whole;
   plan.prune_order = ImportanceOrder(asset, options.seed);
@@ -253,13 +186,13 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   // Lazy greedy: each proposal keeps the cost per byte measured at an earlier state
   // (costs change slowly between moves); a stale best is measured again, and a move is
   // taken only when the best cost is a fresh one (measured at the current state).
-  CandidateEvaluator evaluator(options, &plan, &measurer, &state, &current);
   std::map<MoveKey, Cached> cache;
   StepScale scale;
+  CandidateEvaluator evaluator(options, &plan, &measurer, &state, &current, &scale);
   TailKeeper tail(TailContentStates(asset));
   while (current.bytes > options.floor_bytes) {
     Stopwatch propose_clock;
-    const std::vector<Move> proposals = Proposals(*state, options, scale);
+    const std::vector<Move> proposals = Proposals(state->asset, state->write, options, scale);
     plan.timing.propose_seconds += propose_clock.Lap();
     if (proposals.empty()) break;
     // The best evaluation made at the current state, with its state and decoded asset.
@@ -330,7 +263,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
       if (!more) break;
     }
     tail.Taken(move, plan.moves.size(), std::move(state));
-    state = std::make_shared<const State>(std::move(taken).Next());
+    MakeCurrent(std::move(taken), &state, &evaluator);
     current = measured;
     plan.moves.push_back(move);
     scale.Taken(move.lever, options.step_growth);
@@ -340,6 +273,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   evaluator.Finish();
   plan.tail = tail.Finish(asset, options.write, plan.moves.size(), std::move(state));
   plan.timing.total_seconds = whole.Lap();
+  plan.timing.render_load_seconds = renderer->load_seconds() - loads_before;
   const ProbeRenderer::CacheCounts after = renderer->cache_counts();
   plan.timing.probe_cache = {after.deformed - before.deformed, after.deform_reused - before.deform_reused,
                              after.tiles_drawn - before.tiles_drawn, after.tiles_reused - before.tiles_reused};

@@ -34,6 +34,9 @@ struct State {
   std::vector<uint32_t> kept;
   // Shared by every state derived from the same InitialState (copies share it).
   std::shared_ptr<TextureShrinkMemo> memo;
+  // The residuals of `asset`'s textures, one per texture, when known (null otherwise): set by a
+  // texture move, gathered by a prune, shared by moves that leave the textures alone.
+  std::shared_ptr<const PoolResiduals> texture_residuals;
 };
 
 State InitialState(const Asset& asset, const WriteOptions& write);
@@ -107,6 +110,10 @@ State CopyState(const State& state);
 // builds its pool from `from`'s.
 StatusOr<State> AppliedTo(const State& from, const Move& move, const std::vector<uint32_t>& prune_order,
                           int min_grid_resolution);
+
+// `move` applied to `state` in place (ApplyMove); a move that changes textures forgets their
+// residuals.
+Status ApplyInPlace(const Move& move, const std::vector<uint32_t>& prune_order, int min_grid_resolution, State* state);
 
 // The state after moves[begin, end) applied to `start`; moves[k] (if in range) with its count
 // replaced by `count_k` (0: skipped). The first move applied reads `start` (AppliedTo).

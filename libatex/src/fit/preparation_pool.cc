@@ -36,11 +36,13 @@ PreparationPool::~PreparationPool() {
   for (std::thread& t : threads_) t.join();
 }
 
-std::shared_ptr<PreparationPool::Task> PreparationPool::Submit(std::function<void()> job, bool urgent) {
+std::shared_ptr<PreparationPool::Task> PreparationPool::Submit(std::function<void()> job, Priority priority) {
   auto task = std::make_shared<Task>(std::move(job));
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    (urgent ? urgent_ : later_).push_back(task);
+    if (priority == Priority::kUrgent) urgent_.push_back(task);
+    if (priority == Priority::kSoon) later_.push_front(task);
+    if (priority == Priority::kLater) later_.push_back(task);
   }
   changed_.notify_all();
   return task;
@@ -84,6 +86,14 @@ void PreparationPool::Finish(const std::shared_ptr<Task>& task) {
     return;
   }
   changed_.wait(lock, [&] { return task->phase == Task::Phase::kDone || task->phase == Task::Phase::kCancelled; });
+}
+
+void PreparationPool::Promote(const std::shared_ptr<Task>& task) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = std::find(later_.begin(), later_.end(), task);
+  if (it == later_.end()) return;
+  later_.erase(it);
+  urgent_.push_back(task);
 }
 
 void PreparationPool::Cancel(const std::shared_ptr<Task>& task) {

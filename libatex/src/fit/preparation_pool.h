@@ -30,12 +30,20 @@ class PreparationPool {
   PreparationPool(const PreparationPool&) = delete;
   PreparationPool& operator=(const PreparationPool&) = delete;
 
-  // Queues `job`: urgent jobs start before the others, each kind in submission order. `job`
-  // must not throw (the plan's jobs catch and store their errors).
-  std::shared_ptr<Task> Submit(std::function<void()> job, bool urgent);
+  // Which queued jobs start first: urgent ones (the plan waits for them), in submission order;
+  // then soon ones, latest first; then the later ones, in submission order.
+  enum class Priority { kUrgent, kSoon, kLater };
+  // Queues `job`. `job` must not throw (the plan's jobs catch and store their errors).
+  std::shared_ptr<Task> Submit(std::function<void()> job, Priority priority);
+  std::shared_ptr<Task> Submit(std::function<void()> job, bool urgent) {
+    return Submit(std::move(job), urgent ? Priority::kUrgent : Priority::kLater);
+  }
   // Returns once `task` has run; runs it on the calling thread when no worker has started it.
   // Precondition: `task` was not cancelled.
   void Finish(const std::shared_ptr<Task>& task);
+  // A queued task starts before the tasks that are not urgent (the plan needs it now); no
+  // effect on a task already started, finished or cancelled.
+  void Promote(const std::shared_ptr<Task>& task);
   // A task not started never runs (its job is destroyed here); a running one finishes on its
   // worker. Either way nothing waits for it.
   void Cancel(const std::shared_ptr<Task>& task);
@@ -50,7 +58,7 @@ class PreparationPool {
 
   std::mutex mutex_;
   std::condition_variable changed_;  // a task queued, started or finished; or stopping
-  std::deque<std::shared_ptr<Task>> urgent_, later_;
+  std::deque<std::shared_ptr<Task>> urgent_, later_;  // later_: the soon ones at its front
   size_t running_ = 0;
   bool stopping_ = false;
   std::vector<std::thread> threads_;

@@ -67,12 +67,16 @@ TEST(PreparationPool, UrgentTasksStartFirstAndACancelledOneNeverRuns) {
   auto held = std::make_shared<int>(7);
   auto cancelled = pool.Submit([&, held] { record(2)(); }, false);
   auto urgent = pool.Submit(record(3), true);
+  auto soon = pool.Submit(record(4), PreparationPool::Priority::kSoon);
+  auto sooner = pool.Submit(record(5), PreparationPool::Priority::kSoon);
+  auto promoted = pool.Submit(record(6), false);
+  pool.Promote(promoted);  // now urgent, after the urgent one queued before
   EXPECT_EQ(held.use_count(), 2);
   pool.Cancel(cancelled);
   EXPECT_EQ(held.use_count(), 1);  // the cancelled job is destroyed at once
   gate.Open();
   pool.WaitIdle();  // the worker runs the queue (WaitIdle runs nothing itself while there are workers)
-  EXPECT_EQ(order, (std::vector<int>{3, 1}));
+  EXPECT_EQ(order, (std::vector<int>{3, 6, 5, 4, 1}));
   pool.Finish(later);  // done already: returns at once
 }
 

@@ -1,5 +1,6 @@
 // Probe views, probe rendering and the importance order (fit.h).
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <numeric>
 
@@ -127,20 +128,24 @@ StatusOr<std::vector<Image>> ProbeRenderer::RenderCameras(const Asset& asset, co
 }
 
 StatusOr<std::vector<Image>> ProbeRenderer::RenderState(const train::ModelState& state,
-                                                        const train::RenderRequest& request) {
+                                                        const train::RenderRequest& request,
+                                                        const train::StateKeys* keys) {
   if (cpu_) {
     return MakeError(StatusCode::kUnsupported,
                      "probe renders from a render state need a GPU backend; the CPU renderer renders assets");
   }
   std::vector<Camera> cameras;
   for (const Probe& p : probes_) cameras.push_back(p.camera);
-  return RenderOnBackend(state, request, cameras);
+  return RenderOnBackend(state, request, cameras, keys);
 }
 
 StatusOr<std::vector<Image>> ProbeRenderer::RenderOnBackend(const train::ModelState& state,
                                                             const train::RenderRequest& request,
-                                                            const std::vector<Camera>& cameras) {
-  ATEX_RETURN_IF_ERROR(backend_->Load(state));
+                                                            const std::vector<Camera>& cameras,
+                                                            const train::StateKeys* keys) {
+  const auto load_start = std::chrono::steady_clock::now();
+  ATEX_RETURN_IF_ERROR(keys != nullptr ? backend_->LoadKeyed(state, *keys) : backend_->Load(state));
+  load_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start).count();
   std::vector<Image> images;
   images.reserve(cameras.size());
   for (const Camera& camera : cameras) {

@@ -228,10 +228,8 @@ Status RefillSlack(const Asset& asset, const Plan& plan, const WriteOptions& wri
     ATEX_ASSIGN_OR_RETURN(replay, prefixes.Before(*moves, *earliest_changed, encode));
   }
   for (size_t i = *earliest_changed; i + 1 < moves->size(); ++i) {
-    ATEX_RETURN_IF_ERROR(encode->Built([&] {
-      return ApplyMove((*moves)[i], plan.prune_order, &replay.asset, &replay.write, &replay.kept,
-                       plan.min_grid_resolution, replay.memo.get());
-    }));
+    ATEX_RETURN_IF_ERROR(
+        encode->Built([&] { return ApplyInPlace((*moves)[i], plan.prune_order, plan.min_grid_resolution, &replay); }));
     ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> step_bytes, (*encode)(replay.asset, replay.write));
     (*moves)[i].bytes_after = step_bytes.size();
   }

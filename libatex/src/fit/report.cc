@@ -110,8 +110,9 @@ std::string DescribeMove(const Move& m) {
 
 nlohmann::json TimingToJson(const MeasureTiming& t) {
   const double per = t.measurements > 0 ? 1.0 / t.measurements : 0.0;
-  // Apply, encode and decode were paid by unused speculative preparations too.
-  const int prepared = t.measurements + t.prepared_unused;
+  // Apply, encode and decode were paid by unused speculative preparations and next steps too
+  // (those cancelled before they started paid nothing: an upper bound).
+  const int prepared = t.measurements + t.prepared_unused + (t.next_steps_prepared - t.next_steps_used);
   const double per_prepared = prepared > 0 ? 1.0 / prepared : 0.0;
   const double parts = t.apply_seconds + t.encode_seconds + t.decode_seconds + t.render_state_seconds +
                        t.render_seconds +
@@ -119,19 +120,33 @@ nlohmann::json TimingToJson(const MeasureTiming& t) {
   return {{"measurements", t.measurements},
           {"prepared_ahead", t.prepared_ahead},
           {"prepared_unused", t.prepared_unused},
-          {"seconds", {{"apply", t.apply_seconds}, {"encode", t.encode_seconds}, {"decode", t.decode_seconds},
-                       {"render_state", t.render_state_seconds}, {"render", t.render_seconds},
-                       {"distortion", t.distortion_seconds}, {"reference", t.reference_seconds},
-                       {"propose", t.propose_seconds},
-                       {"overlap", t.overlap_seconds}, {"other", std::max(0.0, t.total_seconds - parts)},
-                       {"total", t.total_seconds}}},
+          {"next_steps_prepared", t.next_steps_prepared},
+          {"next_steps_used", t.next_steps_used},
+          {"seconds",
+           {{"apply", t.apply_seconds},
+            {"encode", t.encode_seconds},
+            {"decode", t.decode_seconds},
+            {"render_state", t.render_state_seconds},
+            {"render", t.render_seconds},
+            {"render_load", t.render_load_seconds},
+            {"distortion", t.distortion_seconds},
+            {"reference", t.reference_seconds},
+            {"propose", t.propose_seconds},
+            {"overlap", t.overlap_seconds},
+            {"other", std::max(0.0, t.total_seconds - parts)},
+            {"total", t.total_seconds}}},
           {"seconds_per_measurement",
-           {{"apply", t.apply_seconds * per_prepared}, {"encode", t.encode_seconds * per_prepared},
-            {"decode", t.decode_seconds * per_prepared}, {"render_state", t.render_state_seconds * per_prepared},
-            {"render", t.render_seconds * per}, {"distortion", t.distortion_seconds * per}}},
+           {{"apply", t.apply_seconds * per_prepared},
+            {"encode", t.encode_seconds * per_prepared},
+            {"decode", t.decode_seconds * per_prepared},
+            {"render_state", t.render_state_seconds * per_prepared},
+            {"render", t.render_seconds * per},
+            {"distortion", t.distortion_seconds * per}}},
           {"probe_cache",
-           {{"deformed", t.probe_cache.deformed}, {"deform_reused", t.probe_cache.deform_reused},
-            {"tiles_drawn", t.probe_cache.tiles_drawn}, {"tiles_reused", t.probe_cache.tiles_reused}}}};
+           {{"deformed", t.probe_cache.deformed},
+            {"deform_reused", t.probe_cache.deform_reused},
+            {"tiles_drawn", t.probe_cache.tiles_drawn},
+            {"tiles_reused", t.probe_cache.tiles_reused}}}};
 }
 
 nlohmann::json MoveToJson(const Move& m) {

@@ -16,6 +16,7 @@ list(APPEND ATEX_LIB_SOURCES
   ${CMAKE_CURRENT_LIST_DIR}/plan.cc
   ${CMAKE_CURRENT_LIST_DIR}/preparation_pool.cc
   ${CMAKE_CURRENT_LIST_DIR}/probes.cc
+  ${CMAKE_CURRENT_LIST_DIR}/proposals.cc
   ${CMAKE_CURRENT_LIST_DIR}/refill.cc
   ${CMAKE_CURRENT_LIST_DIR}/report.cc
   ${CMAKE_CURRENT_LIST_DIR}/run.cc

@@ -172,10 +172,12 @@ struct Op {
 };
 
 // A texture's halvings one after another, down to 1×1 (4×4 takes four), and how many of them
-// the greedy took.
+// the greedy took. residuals[s] are those of the texture before ops[s]; after the last op it is
+// 1×1 (its residuals are 0).
 constexpr int kMaxHalvings = 4;
 struct Chain {
   std::array<Op, kMaxHalvings> ops;
+  std::array<HalvingResiduals, kMaxHalvings> residuals;
   uint8_t length = 0, taken = 0;
 };
 constexpr uint32_t kNoChain = UINT32_MAX;
@@ -197,9 +199,14 @@ class HalvingCosts {
     }
   }
 
-  // The op halving texture i, whose texels are `src` ([h][w][4]), along its cheaper axis (on a
-  // tie the one with the smaller peak scale); false at 1×1.
-  bool Best(uint32_t i, const float* src, int h, int w, Op* op) const {
+  // The residuals of halving a texture whose texels are `src` ([h][w][4]).
+  HalvingResiduals Residuals(const float* src, int h, int w) const {
+    return memo_ != nullptr ? memo_->Residuals(src, h, w) : HalvingResidualsOf(src, h, w);
+  }
+
+  // The op halving texture i of size h×w, whose halvings' residuals are `r`, along its cheaper
+  // axis (on a tie the one with the smaller peak scale); false at 1×1.
+  bool Best(uint32_t i, const HalvingResiduals& r, int h, int w, Op* op) const {
     if (h == 1 && w == 1) return false;
     const double importance = std::max(0.0f, Stat(importance_, i, 1.0f));
     struct Choice {
@@ -209,7 +216,6 @@ class HalvingCosts {
     };
     std::array<Choice, 2> choices;
     int choice_count = 0;
-    const HalvingResiduals r = memo_ != nullptr ? memo_->Residuals(src, h, w) : HalvingResidualsOf(src, h, w);
     if (w > 1)
       choices[choice_count++] = {importance * r.width * h * w / (h * (w - w / 2)), Stat(scale_u_, i, 0), h, w / 2};
     if (h > 1)
@@ -247,16 +253,22 @@ const float* InputTexels(const TexturePool& pool, size_t i) {
 // outside them comes after all of theirs, and they are `count` pops. Each chain (every
 // halving after the one before: most of the greedy's work, and independent) is computed on
 // several threads.
+// `residuals` holds every texture's residuals: given by the caller, or computed here when it
+// comes empty.
 std::vector<Chain> ChainsOfTheCheapest(const TexturePool& pool, const HalvingCosts& costs, uint64_t count,
-                                       std::vector<uint32_t>* chain_of) {
+                                       PoolResiduals* residuals, std::vector<uint32_t>* chain_of) {
   const size_t n = pool.size();
+  const bool compute = residuals->empty();
+  if (compute) residuals->resize(n);
   std::vector<Op> first(n);
   std::vector<uint8_t> has_op(n, 0);
 #ifdef _OPENMP
 #pragma omp parallel for schedule(static) if (n > 4096)
 #endif
   for (int64_t i = 0; i < static_cast<int64_t>(n); ++i) {
-    has_op[i] = costs.Best(static_cast<uint32_t>(i), InputTexels(pool, i), pool.heights[i], pool.widths[i], &first[i]);
+    const int h = pool.heights[i], w = pool.widths[i];
+    if (compute) (*residuals)[i] = costs.Residuals(InputTexels(pool, i), h, w);
+    has_op[i] = costs.Best(static_cast<uint32_t>(i), (*residuals)[i], h, w, &first[i]);
   }
   size_t kept = 0;
   for (size_t i = 0; i < n; ++i)
@@ -277,6 +289,7 @@ std::vector<Chain> ChainsOfTheCheapest(const TexturePool& pool, const HalvingCos
     const uint32_t i = first[j].index;
     (*chain_of)[i] = static_cast<uint32_t>(j);
     chain.ops[0] = first[j];
+    chain.residuals[0] = (*residuals)[i];
     chain.length = 1;
     std::array<ShrunkTexels, 2> buffers;
     const float* src = InputTexels(pool, i);
@@ -288,7 +301,9 @@ std::vector<Chain> ChainsOfTheCheapest(const TexturePool& pool, const HalvingCos
       src = dst;
       h = op.new_h;
       w = op.new_w;
-      if (!costs.Best(i, src, h, w, &chain.ops[chain.length])) break;
+      if (h * w == 1) break;
+      chain.residuals[chain.length] = costs.Residuals(src, h, w);
+      if (!costs.Best(i, chain.residuals[chain.length], h, w, &chain.ops[chain.length])) break;
       ++chain.length;
     }
     for (uint8_t step = 0; step < chain.length; ++step) {
@@ -339,12 +354,19 @@ void WriteShrunkPool(const TexturePool& pool, const std::vector<Chain>& chains, 
 
 }  // namespace
 
-StatusOr<uint64_t> ShrinkTexturePool(const Asset& asset, uint64_t count, TextureShrinkMemo* memo, TexturePool* out) {
+StatusOr<uint64_t> ShrinkTexturePool(const Asset& asset, uint64_t count, TextureShrinkMemo* memo, TexturePool* out,
+                                     const PoolResiduals* known, PoolResiduals* out_residuals) {
   if (!asset.textures) return MakeError(StatusCode::kInvalidArgument, "fit: no texture pool to shrink");
   const TexturePool& pool = *asset.textures;
+  if (known != nullptr && known->size() != pool.size()) {
+    return MakeError(StatusCode::kInvalidArgument, "fit: ", known->size(), " texture residuals for ", pool.size(),
+                     " textures");
+  }
   const HalvingCosts costs(asset, memo);
+  PoolResiduals residuals;
+  if (known != nullptr) residuals = *known;
   std::vector<uint32_t> chain_of;
-  std::vector<Chain> chains = ChainsOfTheCheapest(pool, costs, count, &chain_of);
+  std::vector<Chain> chains = ChainsOfTheCheapest(pool, costs, count, &residuals, &chain_of);
   // The greedy: `count` pops in Op order (a total order, so the result does not depend on
   // threads), each offering the next halving of its texture.
   std::vector<Op> heads;
@@ -361,6 +383,14 @@ StatusOr<uint64_t> ShrinkTexturePool(const Asset& asset, uint64_t count, Texture
     if (chain.taken < chain.length) queue.push(chain.ops[chain.taken]);
   }
   WriteShrunkPool(pool, chains, chain_of, out);
+  if (out_residuals != nullptr) {
+    for (const Chain& chain : chains) {
+      if (chain.taken == 0) continue;
+      const uint32_t i = chain.ops[0].index;
+      residuals[i] = chain.taken < chain.length ? chain.residuals[chain.taken] : HalvingResiduals{};
+    }
+    *out_residuals = std::move(residuals);
+  }
   return done;
 }
 

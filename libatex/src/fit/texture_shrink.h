@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <mutex>
 #include <unordered_map>
+#include <vector>
 
 #include "container/fingerprint.h"
 
@@ -62,11 +63,19 @@ class TextureShrinkMemo {
 // recomputing the residuals of textures seen before; the result is the same.
 StatusOr<uint64_t> ShrinkTextures(Asset* asset, uint64_t count, TextureShrinkMemo* memo = nullptr);
 
+// HalvingResidualsOf every texture of a pool, by index: what a fit state carries so that a
+// texture move from it, or from a state derived from it, finds them without computing or
+// looking them up (a Panoptic pool holds 360,000 textures).
+using PoolResiduals = std::vector<HalvingResiduals>;
+
 // ShrinkTextures without changing `asset`: its texture pool shrunk, written to `out` (the
 // returned count of operations done; `asset`'s statistics order them). For a caller that
-// copies the rest of the asset: the input pool need not be copied first. kInvalidArgument
-// when the asset has no texture pool.
-StatusOr<uint64_t> ShrinkTexturePool(const Asset& asset, uint64_t count, TextureShrinkMemo* memo, TexturePool* out);
+// copies the rest of the asset: the input pool need not be copied first. `known` (may be
+// null) holds the residuals of `asset`'s pool, one per texture; `out_residuals` (may be null)
+// gets those of `out` (its halvings' are computed on the way). The pool is the same either way.
+// kInvalidArgument when the asset has no texture pool or `known` does not match it.
+StatusOr<uint64_t> ShrinkTexturePool(const Asset& asset, uint64_t count, TextureShrinkMemo* memo, TexturePool* out,
+                                     const PoolResiduals* known = nullptr, PoolResiduals* out_residuals = nullptr);
 
 // What ShrinkTextures does to the metadata after `done` operations: a uniform pool that
 // lost texels is adaptive.

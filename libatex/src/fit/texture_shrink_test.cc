@@ -5,6 +5,7 @@
 #include <optional>
 #include <queue>
 #include <random>
+#include <string>
 #include <tuple>
 #include <vector>
 
@@ -15,6 +16,7 @@
 #include "container/synthetic_asset.h"
 #include "fit/fit_test_util.h"
 #include "fit/levers.h"
+#include "fit/plan_state.h"
 #include "fit/texture_shrink.h"
 
 namespace atex::fit {
@@ -185,6 +187,73 @@ TEST(TextureShrink, ChainsComputedAheadGiveTheSequentialGreedysPool) {
       EXPECT_EQ(shrunk.textures->texels, expected.texels) << variant << " " << count;
     }
   }
+}
+
+// Every texture's residuals as HalvingResidualsOf computes them from the pool.
+PoolResiduals ResidualsOf(const TexturePool& pool) {
+  PoolResiduals r;
+  for (size_t i = 0; i < pool.size(); ++i) {
+    r.push_back(
+        HalvingResidualsOf(pool.texels.data() + pool.offsets[i] * kTexelChannels, pool.heights[i], pool.widths[i]));
+  }
+  return r;
+}
+
+void ExpectSameResiduals(const PoolResiduals& expected, const PoolResiduals& actual, const std::string& where) {
+  ASSERT_EQ(expected.size(), actual.size()) << where;
+  for (size_t i = 0; i < expected.size(); ++i) {
+    ASSERT_EQ(expected[i].width, actual[i].width) << where << " texture " << i;
+    ASSERT_EQ(expected[i].height, actual[i].height) << where << " texture " << i;
+  }
+}
+
+TEST(TextureShrink, ResidualsCarriedFromPoolToPoolAreThePoolsOwn) {
+  // A chain of texture moves, each given the residuals the one before wrote: the same pools
+  // as without them, and the residuals written are those of each new pool's textures.
+  Asset a = SmallAsset(container::SyntheticTextures::kMixed, 21, 3000);
+  std::optional<PoolResiduals> known;
+  for (uint64_t count : {uint64_t{700}, uint64_t{1}, uint64_t{2500}, ShrinkableTexels(*a.textures)}) {
+    TexturePool plain, carried;
+    PoolResiduals written;
+    const uint64_t done = ShrinkTexturePool(a, count, nullptr, &plain).value();
+    ASSERT_EQ(ShrinkTexturePool(a, count, nullptr, &carried, known ? &*known : nullptr, &written).value(), done);
+    EXPECT_EQ(plain.heights, carried.heights) << count;
+    EXPECT_EQ(plain.widths, carried.widths) << count;
+    EXPECT_EQ(plain.texels, carried.texels) << count;
+    ExpectSameResiduals(ResidualsOf(carried), written, "after " + std::to_string(count));
+    a.textures = std::move(carried);
+    known = std::move(written);
+  }
+  PoolResiduals wrong(a.textures->size() + 1);
+  TexturePool out;
+  EXPECT_EQ(ShrinkTexturePool(a, 1, nullptr, &out, &wrong).status().code(), StatusCode::kInvalidArgument);
+}
+
+TEST(TextureShrink, FitStatesCarryTheirTexturesResiduals) {
+  // The fitter's states: a texture move writes the residuals of its pool, a prune gathers the
+  // kept textures', an SH move keeps them, and halving every texture forgets them.
+  const Asset asset = SmallAsset(container::SyntheticTextures::kMixed, 22, 2000);
+  internal::State state = internal::InitialState(asset, WriteOptions{});
+  const std::vector<uint32_t> order = ImportanceOrder(asset, 3);
+  Move textures, prune, sh, all;
+  textures.lever = Lever::kTextures;
+  textures.count = 900;
+  prune.lever = Lever::kPrune;
+  prune.count = 600;
+  sh.lever = Lever::kShDegree;
+  all.lever = Lever::kAllTextures;
+  for (const Move& m : {textures, prune, textures, sh, prune, textures}) {
+    auto next = internal::AppliedTo(state, m, order, 4);
+    ASSERT_TRUE(next.ok()) << next.status().ToString();
+    state = std::move(*next);
+    ASSERT_NE(state.texture_residuals, nullptr) << DescribeMove(m);
+    ExpectSameResiduals(ResidualsOf(*state.asset.textures), *state.texture_residuals, DescribeMove(m));
+  }
+  auto halved = internal::AppliedTo(state, all, order, 4);
+  ASSERT_TRUE(halved.ok());
+  EXPECT_EQ(halved->texture_residuals, nullptr);
+  ASSERT_TRUE(internal::ApplyInPlace(textures, order, 4, &state).ok());
+  EXPECT_EQ(state.texture_residuals, nullptr) << "a move applied in place forgets them";
 }
 
 TEST(TextureShrink, UniformAssetsBecomeAdaptive) {

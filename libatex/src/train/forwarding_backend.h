@@ -18,6 +18,7 @@ class ForwardingBackend : public Backend {
   std::string name() const override { return "forwarding(" + inner_->name() + ")"; }
   int MaxBatchViews() const override { return inner_->MaxBatchViews(); }
   Status Load(const ModelState& s) override { return inner_->Load(s); }
+  Status LoadKeyed(const ModelState& s, const StateKeys& k) override { return inner_->LoadKeyed(s, k); }
   Status Save(ModelState* s) override { return inner_->Save(s); }
   Status ReadGaussians(Gaussians* g) override { return inner_->ReadGaussians(g); }
   StatusOr<StepResult> Step(const StepRequest& r, std::span<const TrainView> v) override { return inner_->Step(r, v); }

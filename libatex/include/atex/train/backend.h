@@ -179,6 +179,15 @@ struct RenderRequest {
 // moments and step counters stay as before the call (statistics of that step may have
 // been accumulated). The trainer then restores its last good state (rollback).
 // Threads. A backend is used from one thread at a time.
+// Content keys of a state's value arrays, from the caller (e.g. 128-bit fingerprints of their
+// bytes); a zero key means unknown. Equal non-zero keys must mean equal arrays (the same
+// length and bytes): a backend trusts them. `texels` covers the texture layout and the texels;
+// `deformation` the whole field (config, grids and MLP).
+struct StateKeys {
+  using Key = std::array<uint64_t, 2>;
+  Key positions{}, rotations{}, log_scales{}, opacity{}, sh{}, time_windows{}, texels{}, deformation{};
+};
+
 class Backend {
  public:
   virtual ~Backend() = default;
@@ -193,6 +202,15 @@ class Backend {
   // The state must be consistent (ValidateAsset's shapes; moments empty or shaped like
   // the parameters: empty moments start at zero).
   virtual Status Load(const ModelState& state) = 0;
+  // Load(state) (the same result), where `keys` name the content of the state's value arrays:
+  // a backend may keep an array it holds from an earlier LoadKeyed, unchanged since (no Load,
+  // Step or edit in between), whose key equals the new one, instead of copying it again. The
+  // fitter's probe renders load dozens of states that differ in an array or two. The default
+  // loads everything.
+  virtual Status LoadKeyed(const ModelState& state, const StateKeys& keys) {
+    (void)keys;
+    return Load(state);
+  }
   // Copies the whole state out (checkpoints, final asset).
   virtual Status Save(ModelState* state) = 0;
   // Copies only the canonical Gaussians out (cheap; densification planning).

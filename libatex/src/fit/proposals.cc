@@ -1,0 +1,90 @@
+// The plan's proposals (proposals.h).
+#include "proposals.h"
+
+#include <algorithm>
+
+#include "levers.h"
+
+namespace atex::fit::internal {
+
+void StepScale::Taken(Lever lever, double growth) {
+  const bool again = last == lever;
+  if (!again) prune = textures = 1;
+  if (again && lever == Lever::kPrune) prune = std::min(prune * growth, 1e6);
+  if (again && lever == Lever::kTextures) textures = std::min(textures * growth, 1e6);
+  last = lever;
+}
+
+std::vector<Move> Proposals(const Asset& a, const WriteOptions& write, const PlanOptions& o, const StepScale& scale) {
+  std::vector<Move> moves;
+  const size_t n = a.gaussians.size();
+  const auto allowed = [&](Lever lever) { return HasLever(o.levers, lever); };
+  if (allowed(Lever::kPrune) && n > 1) {
+    Move m;
+    m.lever = Lever::kPrune;
+    const double fraction = std::min(o.prune_fraction * scale.prune, std::max(o.prune_fraction, 0.5));
+    m.count = std::clamp<uint64_t>(static_cast<uint64_t>(fraction * static_cast<double>(n)), 1, n - 1);
+    moves.push_back(m);
+  }
+  if (allowed(Lever::kAllTextures) && a.textures && ShrinkableTexels(*a.textures) > 0) {
+    Move m;
+    m.lever = Lever::kAllTextures;
+    moves.push_back(m);
+  }
+  if (allowed(Lever::kTextures) && a.textures && ShrinkableTexels(*a.textures) > 0) {
+    uint64_t growable = 0;
+    for (size_t i = 0; i < a.textures->size(); ++i) growable += a.textures->heights[i] * a.textures->widths[i] > 1;
+    Move m;
+    m.lever = Lever::kTextures;
+    const double fraction = std::min(o.texture_fraction * scale.textures, 1.0);
+    m.count = std::max<uint64_t>(1, static_cast<uint64_t>(fraction * static_cast<double>(growable)));
+    moves.push_back(m);
+  }
+  if (allowed(Lever::kShDegree) && a.gaussians.sh_degree > 0) {
+    Move m;
+    m.lever = Lever::kShDegree;
+    moves.push_back(m);
+  }
+  for (int s = 0; allowed(Lever::kEncoding) && s < static_cast<int>(Stream::kCount); ++s) {
+    const auto stream = static_cast<Stream>(s);
+    if (stream == Stream::kShRest && a.gaussians.sh_degree == 0) continue;
+    if (stream == Stream::kTexels && !a.textures) continue;
+    if (stream == Stream::kDeformationGrids && !a.deformation) continue;
+    const ScalarEncoding current = GetEncoding(write, stream);
+    std::vector<ScalarEncoding> next;
+    if (current == ScalarEncoding::kFloat32) next = {ScalarEncoding::kFloat16, ScalarEncoding::kQuant16};
+    if (current == ScalarEncoding::kFloat16 || current == ScalarEncoding::kQuant16) next = {ScalarEncoding::kQuant8};
+    for (ScalarEncoding e : next) {
+      Move m;
+      m.lever = Lever::kEncoding;
+      m.stream = stream;
+      m.encoding = e;
+      moves.push_back(m);
+    }
+  }
+  if (allowed(Lever::kGrid) && CanCoarsenGrid(a, o.min_grid_resolution)) {
+    Move m;
+    m.lever = Lever::kGrid;
+    moves.push_back(m);
+  }
+  return moves;
+}
+
+MoveKey KeyOf(const Move& m) {
+  return {static_cast<int>(m.lever), m.lever == Lever::kEncoding ? static_cast<int>(m.stream) : -1,
+          m.lever == Lever::kEncoding ? static_cast<int>(m.encoding) : -1};
+}
+
+std::optional<Move> NextStepAfter(const Asset& asset, const WriteOptions& write, const Move& taken,
+                                  const PlanOptions& options, StepScale scale) {
+  scale.Taken(taken.lever, options.step_growth);
+  for (const Move& m : Proposals(asset, write, options, scale)) {
+    // An encoding move's next step is its stream's next encoding (q8 after f16 or q16).
+    const bool same = taken.lever == Lever::kEncoding ? m.lever == Lever::kEncoding && m.stream == taken.stream
+                                                      : KeyOf(m) == KeyOf(taken);
+    if (same) return m;
+  }
+  return std::nullopt;
+}
+
+}  // namespace atex::fit::internal
