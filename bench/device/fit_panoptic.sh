@@ -119,6 +119,8 @@ print(json.dumps({"model": model, "build": label, "budget_bytes": int(budget), "
                   "gaussians": fit.get("levers", {}).get("gaussians", {}).get("after"),
                   "sha256": hashlib.sha256(open(name + ".atex", "rb").read()).hexdigest(),
                   "prepared_ahead": timing.get("prepared_ahead"), "prepared_unused": timing.get("prepared_unused"),
+                  "next_steps_prepared": timing.get("next_steps_prepared"),
+                  "next_steps_used": timing.get("next_steps_used"),
                   "seconds": fit.get("seconds")}))
 PY
   done
