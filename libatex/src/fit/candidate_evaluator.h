@@ -34,7 +34,7 @@ struct Evaluated {
   // The state after the move (kept only for the best fresh evaluation): `next`, or for an
   // encoding move, which changes only the write options, the state it was prepared at (`base`)
   // with `write`: its asset is copied only when the move is taken (Next). `next` is shared: the
-  // preparation of the lever's next step may read it already (CandidateEvaluator's follow-ups).
+  // preparation of the lever's next step may read it already (CandidateEvaluator's next steps).
   std::shared_ptr<const State> next;
   std::shared_ptr<const State> base;
   WriteOptions write;
@@ -140,8 +140,8 @@ class CandidateEvaluator {
   // Drops a pending preparation that will not be used.
   void Drop(const Pending& pending);
 
-  // A move was taken (`state` and `scale` are the new ones): the next steps prepared at other
-  // states are cancelled, and from now on candidates get theirs (where the measurer prepares
+  // A move was taken (`state` is the new one): the next steps prepared at other states are
+  // cancelled, and from now on candidates get theirs (where the measurer prepares
   // beside scores and the memory holds them). For an encoding move, `from` is the state it was
   // prepared at and `write` its write options: the new state is a copy of `from` with `write`.
   void Taken(const State* from = nullptr, const WriteOptions* write = nullptr);
