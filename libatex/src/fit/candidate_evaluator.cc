@@ -117,9 +117,9 @@ std::optional<Pending> CandidateEvaluator::TakeNextStep(const Move& proposal) {
 
 void CandidateEvaluator::FollowLocked(const std::shared_ptr<Line>& line) {
   if (!line->may_follow || line->followed || !line->after) return;
-  // A candidate not prepared at the current state can no longer be taken.
   const auto after_spares =
       std::count_if(next_steps_.begin(), next_steps_.end(), [](const NextStep& n) { return n.after_spare; });
+  // A candidate not prepared at the current state can no longer be taken.
   if (!next_steps_on_ || line->base != current_at_ ||
       (line->spare && static_cast<size_t>(after_spares) >= kMaxSpareNextSteps)) {
     line->after = nullptr;
