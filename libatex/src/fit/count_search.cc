@@ -17,12 +17,18 @@ StatusOr<uint64_t> SmallestFittingCount(uint64_t lo, uint64_t lo_bytes, uint64_t
   // every two trials at least halve it: at most about twice a bisection's trials.
   bool bisect = false;
   int count = 0;
+  // The guesses aim at the middle of the sizes accepted at once, [budget - enough_slack,
+  // budget], not at its top: a guess off by compression noise or the sizes' curvature then
+  // lands inside it as often from above as from below, instead of over the budget half the time.
+  // On near-linear sizes this halves the trials (StopsOnceTheSlackLeftIsBelowEnough).
+  const uint64_t aim = budget - std::min(enough_slack, budget) / 2;
   while (hi - lo > 1 && budget - hi_bytes >= enough_slack) {
     const uint64_t width = hi - lo;
     uint64_t next = lo + width / 2;
     if (!bisect) {
-      // Where the straight line between the ends crosses the budget (rounded up, towards hi).
-      const double f = static_cast<double>(lo_bytes - budget) / static_cast<double>(lo_bytes - hi_bytes);
+      // Where the straight line between the ends crosses the aim (rounded up, towards hi).
+      // In the loop hi_bytes <= budget - enough_slack <= aim <= budget < lo_bytes: f is in (0, 1].
+      const double f = static_cast<double>(lo_bytes - aim) / static_cast<double>(lo_bytes - hi_bytes);
       const double step = std::ceil(f * static_cast<double>(width));
       next = lo + static_cast<uint64_t>(std::clamp(step, 1.0, static_cast<double>(width - 1)));
     }
