@@ -31,6 +31,7 @@
 // naming that size (CheckBudget).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -293,6 +294,12 @@ struct Fitted {
   double refill_encode_seconds = 0;
   // The refill's time building the states it encodes: its prefixes, trial states and replay.
   double refill_state_seconds = 0;
+  // The refill's encodes in order, {move, count, bytes}: `move` the plan index of the move whose
+  // count a trial tries and `count` that count; -1 for the encodes that try no count (undoing
+  // an indivisible move, the replay's sizes); bytes -1 where the encode failed. Before the
+  // trials of a move, its whole count with the output's size then (known, not encoded).
+  // For studying the count searches; refill_encodes counts the encodes.
+  std::vector<std::array<int64_t, 3>> refill_trials;
 };
 
 // Applies moves of `plan` in order until the encoded asset fits `budget_bytes`; the

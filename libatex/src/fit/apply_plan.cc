@@ -165,6 +165,7 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
       out.refill_encodes = encoder.count() - encodes_before;
       out.refill_encode_seconds = encoder.seconds() - encode_seconds_before;
       out.refill_state_seconds = encoder.build_seconds() - build_seconds_before;
+      out.refill_trials.assign(encoder.trials().begin() + encodes_before, encoder.trials().end());
     }
   }
   // The output itself is encoded without the cache, whose hits rest on content fingerprints

@@ -2,6 +2,8 @@
 // (apply_plan.cc) and the refill (refill.cc). Not part of the public API.
 #pragma once
 
+#include <array>
+
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -46,13 +48,23 @@ State InitialState(const Asset& asset, const WriteOptions& write);
 // spent building the states they encode (Built), apart.
 class TrialEncoder {
  public:
-  StatusOr<std::vector<uint8_t>> operator()(const Asset& asset, const WriteOptions& write) {
+  // One encode, logged (trials()) as {move, count, bytes}: `move` the index of the move whose
+  // count it tries and `count` that count (-1 for an encode that tries no count), bytes -1 when
+  // the encode failed.
+  StatusOr<std::vector<uint8_t>> operator()(const Asset& asset, const WriteOptions& write, int64_t move = -1,
+                                            int64_t count = -1) {
     Stopwatch clock;
     auto bytes = EncodeAsset(asset, write, &cache_);
     seconds_ += clock.Lap();
     ++count_;
+    trials_.push_back({move, count, bytes.ok() ? static_cast<int64_t>(bytes->size()) : -1});
     return bytes;
   }
+  // Logs a size known without an encode (a move's whole count: the bytes the plan had with it).
+  void Note(int64_t move, int64_t count, uint64_t bytes) {
+    trials_.push_back({move, count, static_cast<int64_t>(bytes)});
+  }
+  const std::vector<std::array<int64_t, 3>>& trials() const { return trials_; }
   // Returns build() (a state to encode, or its status), timed into build_seconds().
   template <typename Build>
   auto Built(Build&& build) {
@@ -67,6 +79,7 @@ class TrialEncoder {
 
  private:
   EncodeCache cache_;
+  std::vector<std::array<int64_t, 3>> trials_;
   int count_ = 0;
   double seconds_ = 0;
   double build_seconds_ = 0;

@@ -88,10 +88,12 @@ class PrefixStates {
 StatusOr<std::optional<Refill>> SmallestFittingRefill(const State& prefix, const Plan& plan,
                                                       const std::vector<Move>& moves, size_t k, uint64_t budget,
                                                       uint64_t full_bytes, TrialEncoder* encode) {
+  encode->Note(static_cast<int64_t>(k), static_cast<int64_t>(moves[k].count), full_bytes);
   // With a large slack the move is usually undone entirely: one trial instead of a search.
   ATEX_ASSIGN_OR_RETURN(State without,
                         encode->Built([&] { return ApplyRange(prefix, plan, moves, k, moves.size(), k, 0); }));
-  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> without_bytes, (*encode)(without.asset, without.write));
+  ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> without_bytes,
+                        (*encode)(without.asset, without.write, static_cast<int64_t>(k), 0));
   if (without_bytes.size() <= budget) {
     return std::optional<Refill>(Refill{0, std::move(without), std::move(without_bytes)});
   }
@@ -99,7 +101,8 @@ StatusOr<std::optional<Refill>> SmallestFittingRefill(const State& prefix, const
   const auto bytes_at = [&](uint64_t count) -> StatusOr<uint64_t> {
     ATEX_ASSIGN_OR_RETURN(State trial,
                           encode->Built([&] { return ApplyRange(prefix, plan, moves, k, moves.size(), k, count); }));
-    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes, (*encode)(trial.asset, trial.write));
+    ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> trial_bytes,
+                          (*encode)(trial.asset, trial.write, static_cast<int64_t>(k), static_cast<int64_t>(count)));
     const uint64_t size = trial_bytes.size();
     if (size <= budget) best = Refill{count, std::move(trial), std::move(trial_bytes)};
     return size;

@@ -43,6 +43,14 @@ TEST(Refill, EveryOutputIsItsMovesReplayedFromTheInput) {
         EXPECT_EQ(fitted->refill_encodes, 0) << "budget " << budget;
       }
       refill_encoded += fitted->refill_encodes > 0;
+      // Its log holds every refill encode, and a noted whole count before each move's trials.
+      const auto noted = std::count_if(fitted->refill_trials.begin(), fitted->refill_trials.end(),
+                                       [](const auto& t) { return t[1] > 0 && t[0] >= 0; });
+      EXPECT_GE(fitted->refill_trials.size(), static_cast<size_t>(fitted->refill_encodes));
+      EXPECT_LE(fitted->refill_trials.size(), static_cast<size_t>(fitted->refill_encodes) + noted);
+      for (const auto& t : fitted->refill_trials) {
+        if (t[0] >= 0) EXPECT_LT(static_cast<size_t>(t[0]), plan->moves.size());
+      }
       // The plan's moves up to the first that fits (ApplyPlan's), against the output's: an
       // encoding move fewer is one the refill undid.
       size_t j = 0;

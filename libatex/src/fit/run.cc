@@ -204,6 +204,7 @@ StatusOr<Fitted> Run::FitOnce(const Asset& start, const WriteOptions& start_writ
     timing["refill_encodes"] = fitted->refill_encodes;
     timing["refill_encode_seconds"] = fitted->refill_encode_seconds;
     timing["refill_state_seconds"] = fitted->refill_state_seconds;
+    timing["refill_trials"] = fitted->refill_trials;
   }
   plan_timings_.push_back(std::move(timing));
   return fitted;
