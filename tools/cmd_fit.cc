@@ -212,11 +212,6 @@ int RunFit(const FitArgs& a) {
     command_seconds[name] = std::chrono::duration<double>(now - phase_start).count();
     phase_start = now;
   };
-  // The backends start (a GPU's context takes a fraction of a second) while the input is read
-  // and the dataset opens. The input's test evaluation runs beside the plan on a second GPU
-  // backend (FitRunOptions::input_eval_backend); on the CPU both would share the same cores.
-  // Without one it runs before the plan, with the same result.
-  auto starting = std::async(std::launch::async, StartBackends, a.backend, !a.data.empty() && !(o.quality > 0));
   auto input_bytes = ReadFileBytes(a.input);
   if (!input_bytes.ok()) return cli::Fail(cmd, input_bytes.status().WithContext(a.input));
   std::optional<Asset> order_from;
@@ -227,6 +222,11 @@ int RunFit(const FitArgs& a) {
     o.order_from = &*order_from;
   }
   phase_done("command_read_input");
+  // The backends start (a GPU's context takes a fraction of a second) while the dataset opens.
+  // The input's test evaluation runs beside the plan on a second GPU backend
+  // (FitRunOptions::input_eval_backend); on the CPU both would share the same cores. Without
+  // one it runs before the plan, with the same result.
+  auto starting = std::async(std::launch::async, StartBackends, a.backend, !a.data.empty() && !(o.quality > 0));
   std::unique_ptr<Dataset> dataset;
   Status dataset_status = Status::Ok();
   if (!a.data.empty()) {
@@ -246,7 +246,7 @@ int RunFit(const FitArgs& a) {
   if (!backend.ok()) return cli::Fail(cmd, backend.status());
   if (!backend->note.empty()) std::cerr << "atex fit: " << backend->note << "\n";
   if (backends.eval) o.input_eval_backend = backends.eval->backend.get();
-  // What the backends' start took beyond the input's reading and the dataset's opening.
+  // What the backends' start took beyond the dataset's opening.
   phase_done("command_backend_start");
   if (!dataset_status.ok()) return cli::Fail(cmd, dataset_status);
 
