@@ -82,6 +82,23 @@ for f in "${fitters[@]}"; do
   esac
 done
 read -r -a fit_models <<< "${FITP_MODELS:-uniform adaptive}"
+# A fit still running after FITP_FIT_TIMEOUT seconds (default 120; they take 10-30 s) is stuck,
+# not slow: what it is doing is written to NAME.stuck.txt (its threads' states and CPU use, the
+# GPU's, and every thread's stack where the machine has gdb or cuda-gdb), then it is killed and
+# its row says so ("failed"), and the other fits go on.
+fit_limit=${FITP_FIT_TIMEOUT:-120}
+dump_fit() {
+  local pid=$1 debugger
+  echo "== threads"; top -H -b -n 1 -p "$pid" 2>&1 | head -80
+  echo "== state and wait channel per thread"
+  for t in /proc/"$pid"/task/*; do echo "${t##*/} $(cut -d' ' -f3 "$t/stat") $(cat "$t/wchan" 2>/dev/null)"; done
+  echo "== GPU"; nvidia-smi 2>&1 | head -30
+  debugger=$(command -v gdb || command -v cuda-gdb || true)
+  [ -z "$debugger" ] && [ -x /usr/local/cuda/bin/cuda-gdb ] && debugger=/usr/local/cuda/bin/cuda-gdb
+  if [ -n "$debugger" ]; then
+    echo "== stacks ($debugger)"; timeout 90 "$debugger" -p "$pid" -batch -ex "thread apply all bt" 2>&1 | head -3000
+  fi
+}
 for model in "${fit_models[@]}"; do
   input=${!model}
   for config in "${configs[@]}"; do
@@ -91,10 +108,31 @@ for model in "${fit_models[@]}"; do
     start=$(date +%s.%N)
     # The process's CPU seconds (user, system) beside its wall time.
     TIMEFORMAT='%U %S'
+    (
+      set +e  # a failing probe of the stuck process must not keep it from being killed
+      sleep "$fit_limit"
+      pid=$(pgrep -f -- " $name.atex " | head -1)
+      if [ -n "$pid" ]; then
+        dump_fit "$pid" > "$name.stuck.txt" 2>&1
+        kill -9 "$pid"
+      fi
+    ) &
+    watcher=$!
+    fit_status=0
     # shellcheck disable=SC2086  # $extra is a list of words
     { time "$bin/bin/atex" fit "$input" "$name.atex" --budget "$budget" --data "$bb" --json $extra \
-      > "$name.fit.json" 2> "$name.fit.log"; } 2> "$name.cpu.txt"
+      > "$name.fit.json" 2> "$name.fit.log"; } 2> "$name.cpu.txt" || fit_status=$?
     end=$(date +%s.%N)
+    pkill -P "$watcher" 2> /dev/null || true
+    kill "$watcher" 2> /dev/null || true
+    wait "$watcher" 2> /dev/null || true
+    if [ "$fit_status" != 0 ]; then
+      python3 -c 'import json, sys; print(json.dumps({"model": sys.argv[1], "build": sys.argv[2], "failed": True,
+        "exit_status": int(sys.argv[3]), "stuck": sys.argv[4] == "1", "wall_s": round(float(sys.argv[6]) - float(sys.argv[5]), 2)}))' \
+        "$model" "$label" "$fit_status" "$([ -f "$name.stuck.txt" ] && echo 1 || echo 0)" "$start" "$end" >> "$rows"
+      tail -3 "$name.fit.log" >&2
+      continue
+    fi
     "$BUILD/bin/atex" eval "$name.atex" --data "$bb" --json > "$name.eval.json"
     verified=true
     "$BUILD/bin/atex" verify "$name.atex" > /dev/null 2>&1 || verified=false
@@ -131,8 +169,12 @@ rows = [json.loads(l) for l in open(sys.argv[1])]
 print("| model | build | wall s | fit s | measurements | bytes | within | verify | test PSNR |")
 print("|---|---|---:|---:|---:|---:|---|---|---:|")
 for r in rows:
+    if r.get("failed"):
+        print(f"| {r['model']} | {r['build']} | {r['wall_s']} | failed (exit {r['exit_status']}"
+              f"{', stuck: see .stuck.txt' if r['stuck'] else ''}) | | | | | |")
+        continue
     print(f"| {r['model']} | {r['build']} | {r['wall_s']} | {r['fit_s']} | {r['measurements']} | {r['bytes']} "
           f"| {r['within_budget']} | {r['verify']} | {r['test_psnr']:.4f} |")
 PY
-tar -czf "$out/fitp.tgz" "$out"/*.jsonl "$out"/*.json "$out"/*.log "$out/gpu.txt" "$models"/*.json "$models"/*.log \
+tar -czf "$out/fitp.tgz" "$out"/*.jsonl "$out"/*.json "$out"/*.log "$out"/*.stuck.txt "$out/gpu.txt" "$models"/*.json "$models"/*.log \
   2> /dev/null || true
