@@ -17,12 +17,14 @@ namespace atex::fit::internal {
 //
 // Sizes fall almost linearly with a move's count (each unit removes a Gaussian or a texture
 // axis), so the next count tried is interpolated between the ends, aimed at the middle of the
-// sizes accepted at once (budget - enough_slack / 2; the budget itself when enough_slack is 0). A bisection of a
-// Panoptic texture move (36,000 textures) takes 16 encodes; on near-linear sizes with compression noise this search
-// takes at most 8 (CountSearch.FindsTheBoundaryOfMonotoneSizesInFewTrials). A guess that does not halve the interval
-// (sizes far from linear) is followed by a bisection step, so the search never takes more than about twice a
-// bisection's encodes. Like the bisection it replaces, it assumes sizes do not rise with the count; where they do
-// locally, it returns a count that fits whose predecessor does not.
+// sizes accepted at once (budget - enough_slack / 2; the budget itself when enough_slack is 0).
+// A bisection of a Panoptic texture move (36,000 textures) takes 16 encodes; on near-linear
+// sizes with compression noise this search takes at most 8
+// (CountSearch.FindsTheBoundaryOfMonotoneSizesInFewTrials). A guess that does not halve the
+// interval (sizes far from linear) is followed by a bisection step, so the search never takes
+// more than about twice a bisection's encodes. Like the bisection it replaces, it assumes sizes
+// do not rise with the count; where they do locally, it returns a count that fits whose
+// predecessor does not.
 //
 // `enough_slack` ends the search early: once a fitting count leaves fewer than that many bytes
 // of the budget unused (budget - its size < enough_slack), it is the answer, though a smaller

@@ -43,14 +43,19 @@ TEST(Refill, EveryOutputIsItsMovesReplayedFromTheInput) {
         EXPECT_EQ(fitted->refill_encodes, 0) << "budget " << budget;
       }
       refill_encoded += fitted->refill_encodes > 0;
-      // Its log holds every refill encode, and a noted whole count before each move's trials.
-      const auto noted = std::count_if(fitted->refill_trials.begin(), fitted->refill_trials.end(),
-                                       [](const auto& t) { return t[1] > 0 && t[0] >= 0; });
-      EXPECT_GE(fitted->refill_trials.size(), static_cast<size_t>(fitted->refill_encodes));
-      EXPECT_LE(fitted->refill_trials.size(), static_cast<size_t>(fitted->refill_encodes) + noted);
-      for (const auto& t : fitted->refill_trials) {
-        if (t[0] >= 0) EXPECT_LT(static_cast<size_t>(t[0]), plan->moves.size());
+      // Its log holds every refill encode, and before each move's trials (the first of which is
+      // count 0, the move undone) the move's whole count, noted without an encode.
+      const auto& log = fitted->refill_trials;
+      size_t noted = 0;
+      for (size_t i = 0; i < log.size(); ++i) {
+        if (log[i][0] >= 0) EXPECT_LT(static_cast<size_t>(log[i][0]), plan->moves.size());
+        if (log[i][0] < 0 || log[i][1] != 0) continue;
+        ++noted;
+        ASSERT_GT(i, 0u) << "a move's trials start without its whole count";
+        EXPECT_EQ(log[i - 1][0], log[i][0]);
+        EXPECT_GT(log[i - 1][1], 0);
       }
+      EXPECT_EQ(log.size(), static_cast<size_t>(fitted->refill_encodes) + noted);
       // The plan's moves up to the first that fits (ApplyPlan's), against the output's: an
       // encoding move fewer is one the refill undid.
       size_t j = 0;
