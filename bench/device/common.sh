@@ -28,9 +28,11 @@ build_tree() {  # SRC DIR JOBS TARGET...
 }
 
 # The CLI of .oldsrc (an earlier commit: `git archive COMMIT | tar -x -C .oldsrc`) in build-old,
-# for A/B runs against the current tree.
-build_old() {  # JOBS
-  BUILD_TREE_OPTIONS="-DATEX_TESTS=OFF -DATEX_BENCHMARKS=OFF" build_tree .oldsrc build-old "$1" atex_cli
+# for A/B runs against the current tree; with a second argument NAME, that of .NAMEsrc in
+# build-NAME (a third build, e.g. the last commit beside the old one and the working tree).
+build_old() {  # JOBS [NAME]
+  local name=${2:-old}
+  BUILD_TREE_OPTIONS="-DATEX_TESTS=OFF -DATEX_BENCHMARKS=OFF" build_tree ".${name}src" "build-$name" "$1" atex_cli
 }
 
 # The shortened Panoptic stage-1 model of the A/B scripts, DIR/stage1.atex (6,000 fine steps,

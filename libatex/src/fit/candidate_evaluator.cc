@@ -51,7 +51,9 @@ CandidateEvaluator::CandidateEvaluator(const PlanOptions& options, Plan* plan, M
                         MemoryLimit(UINT64_MAX) / (4 * AssetArrayBytes((*state)->asset)) >=
                             2 * (width_ + kNextStepCandidates)),
       current_at_(state->get()),
-      pool_(width_ > 1 ? width_ + (may_prepare_next_ ? 1 : 0) : 0) {}
+      // With next steps, the speculative preparations (next steps, spares) run on as many
+      // background threads as the plan's width, beside the urgent ones.
+      pool_(width_ > 1 ? width_ + (may_prepare_next_ ? 1 : 0) : 0, may_prepare_next_ ? width_ : 0) {}
 
 StatusOr<Evaluated> CandidateEvaluator::Collect(Pending* pending) {
   Wait([&] { pool_.Finish(pending->task); });

@@ -93,8 +93,10 @@ struct Pending {
 // encoding candidate's is the state it was prepared at with other write options (the plan copies
 // it only when the move is taken, Evaluated::Next), so its next step is prepared at that state
 // with those options, and moves to the copy when the move is taken (Taken). They are queued
-// before the spares, and the pool has one worker more for them. Those made at another state are
-// cancelled when a move is taken. The plan is the same with or without them: a preparation
+// before the spares, and like them run on the pool's background threads, at the lowest priority
+// (PreparationPool), so they do not slow the preparations the plan waits for; the pool also has
+// one worker more for the urgent ones. Those made at another state are cancelled when a move is
+// taken. The plan is the same with or without them: a preparation
 // depends only on its state's content and its move.
 class CandidateEvaluator {
  public:

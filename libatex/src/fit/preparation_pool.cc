@@ -4,6 +4,11 @@
 #include <algorithm>
 #include <system_error>
 
+#if defined(__linux__)
+#include <sys/resource.h>
+#include <unistd.h>
+#endif
+
 namespace atex::fit::internal {
 
 class PreparationPool::Task {
@@ -14,10 +19,32 @@ class PreparationPool::Task {
   Phase phase = Phase::kQueued;
 };
 
-PreparationPool::PreparationPool(size_t workers) {
-  threads_.reserve(workers);
+namespace {
+
+// The calling thread, and the threads it starts from now on (OpenMP's, zstd's), yield the CPU to
+// every thread of normal priority. Linux only: there setpriority(PRIO_PROCESS) of a thread ID
+// changes that thread alone (elsewhere it would change the whole process). A thread may always
+// lower its own priority; nothing here raises it again, which would need privileges.
+void LowerThisThreadsPriority() {
+#if defined(__linux__)
+  (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 19);  // best effort: a refusal changes only timing
+#endif
+}
+
+}  // namespace
+
+PreparationPool::PreparationPool(size_t workers, size_t background) {
+  threads_.reserve(workers + background);
   try {
-    for (size_t i = 0; i < workers; ++i) threads_.emplace_back([this] { Work(); });
+    for (size_t i = 0; i < workers; ++i) threads_.emplace_back([this] { Work(false); });
+    for (size_t i = 0; i < background; ++i) {
+      threads_.emplace_back([this] {
+        LowerThisThreadsPriority();
+        Work(true);
+      });
+      std::lock_guard<std::mutex> lock(mutex_);  // read by the workers
+      ++background_;
+    }
   } catch (const std::system_error&) {
     // No more threads: the ones started do the work, with the threads that finish tasks.
   }
@@ -63,12 +90,20 @@ void PreparationPool::RunLocked(const std::shared_ptr<Task>& task, std::unique_l
   changed_.notify_all();
 }
 
-void PreparationPool::Work() {
+void PreparationPool::Work(bool background) {
   std::unique_lock<std::mutex> lock(mutex_);
+  // Background threads run the tasks that are not urgent, the others the urgent ones (and every
+  // task when there are no background threads). While the constructor still starts background
+  // threads, a worker may run a task that is not urgent: that changes only the order of work.
+  const auto queue_for_me = [&]() -> std::deque<std::shared_ptr<Task>>* {
+    if (background) return later_.empty() ? nullptr : &later_;
+    if (!urgent_.empty()) return &urgent_;
+    return background_ == 0 && !later_.empty() ? &later_ : nullptr;
+  };
   while (true) {
-    changed_.wait(lock, [&] { return stopping_ || !urgent_.empty() || !later_.empty(); });
+    changed_.wait(lock, [&] { return stopping_ || queue_for_me() != nullptr; });
     if (stopping_) return;
-    auto& queue = !urgent_.empty() ? urgent_ : later_;
+    auto& queue = *queue_for_me();
     std::shared_ptr<Task> task = std::move(queue.front());
     queue.pop_front();
     RunLocked(task, &lock);
@@ -112,11 +147,13 @@ void PreparationPool::WaitIdle() {
   std::unique_lock<std::mutex> lock(mutex_);
   while (true) {
     if (running_ == 0 && urgent_.empty() && later_.empty()) return;
-    if (threads_.empty()) {
-      // Nobody else runs the queued tasks.
-      auto& queue = !urgent_.empty() ? urgent_ : later_;
-      std::shared_ptr<Task> task = std::move(queue.front());
-      queue.pop_front();
+    // The queued tasks nobody else runs: urgent ones without workers, any without threads.
+    auto* queue = !urgent_.empty() && threads_.size() == background_ ? &urgent_
+                  : !later_.empty() && threads_.empty()              ? &later_
+                                                                     : nullptr;
+    if (queue != nullptr) {
+      std::shared_ptr<Task> task = std::move(queue->front());
+      queue->pop_front();
       RunLocked(task, &lock);
       continue;
     }

@@ -5,6 +5,13 @@
 // candidate, the plan waits only for the candidate it scores next: the speculative preparations
 // beside it (refreshes the lazy greedy may need later) go on in the background while it scores,
 // and one that turns out unused is cancelled before it starts.
+//
+// Background workers keep speculative work from slowing what the plan waits for. A preparation
+// is parallel inside (OpenMP loops, zstd workers), so urgent and speculative preparations running
+// at once on threads of equal priority share every core, and each speculative one slows the
+// urgent ones. Background workers run at the lowest scheduling priority (their OpenMP and zstd
+// threads inherit it), so they take only the cores the urgent work leaves idle (BENCHMARKS.md,
+// issue 23: a Panoptic fit on 16 cores, 14.0 s instead of 15.4 s, the same file).
 #pragma once
 
 #include <condition_variable>
@@ -22,9 +29,12 @@ class PreparationPool {
  public:
   class Task;
 
-  // Starts up to `workers` threads (fewer when the system refuses one; with none, every task
-  // runs on the thread that finishes it).
-  explicit PreparationPool(size_t workers);
+  // Starts up to `workers` threads and `background` background threads (fewer when the system
+  // refuses one; with none, every task runs on the thread that finishes it). Background threads
+  // lower their own scheduling priority (where the system allows; best effort) and run only
+  // tasks that are not urgent; the others then run only urgent tasks. Without background
+  // threads, the workers run every task, urgent ones first.
+  explicit PreparationPool(size_t workers, size_t background = 0);
   // Cancels the tasks not started and waits for the running ones.
   ~PreparationPool();
   PreparationPool(const PreparationPool&) = delete;
@@ -50,16 +60,19 @@ class PreparationPool {
   // Waits until no task runs and none is queued.
   void WaitIdle();
 
-  size_t workers() const { return threads_.size(); }
+  // The workers that run urgent tasks (the background threads not counted).
+  size_t workers() const { return threads_.size() - background_; }
+  size_t background_workers() const { return background_; }
 
  private:
-  void Work();
+  void Work(bool background);
   void RunLocked(const std::shared_ptr<Task>& task, std::unique_lock<std::mutex>* lock);
 
   std::mutex mutex_;
   std::condition_variable changed_;  // a task queued, started or finished; or stopping
   std::deque<std::shared_ptr<Task>> urgent_, later_;  // later_: the soon ones at its front
   size_t running_ = 0;
+  size_t background_ = 0;  // threads_ ends with them
   bool stopping_ = false;
   std::vector<std::thread> threads_;
 };

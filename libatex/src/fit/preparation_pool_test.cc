@@ -2,12 +2,20 @@
 #include "fit/preparation_pool.h"
 
 #include <atomic>
+#include <cerrno>
 #include <condition_variable>
 #include <memory>
 #include <mutex>
+#include <set>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#if defined(__linux__)
+#include <sys/resource.h>
+#include <unistd.h>
+#endif
 
 namespace atex::fit::internal {
 namespace {
@@ -107,6 +115,60 @@ TEST(PreparationPool, DestroyingThePoolDropsQueuedTasksAndFinishesRunningOnes) {
   EXPECT_EQ(ran.load() % 10, 1);  // the running task finished; the queued one may have started
   EXPECT_EQ(held.use_count(), 1);
 }
+
+TEST(PreparationPool, BackgroundThreadsRunOnlyTasksThatAreNotUrgentAndTheWorkersOnlyUrgentOnes) {
+  PreparationPool pool(1, 1);
+  ASSERT_EQ(pool.workers(), 1u);
+  ASSERT_EQ(pool.background_workers(), 1u);
+  std::mutex mutex;
+  std::set<std::thread::id> urgent_ran_on, later_ran_on;
+  const auto record = [&](std::set<std::thread::id>* on) {
+    return [&, on] {
+      std::lock_guard<std::mutex> lock(mutex);
+      on->insert(std::this_thread::get_id());
+    };
+  };
+  for (int i = 0; i < 200; ++i) {
+    pool.Submit(record(i % 3 == 0 ? &urgent_ran_on : &later_ran_on), i % 3 == 0);
+    pool.Submit(record(&later_ran_on),
+                i % 2 == 0 ? PreparationPool::Priority::kSoon : PreparationPool::Priority::kLater);
+    pool.Submit(record(&urgent_ran_on), true);
+  }
+  pool.WaitIdle();  // the threads run them all: WaitIdle runs nothing itself while both kinds have threads
+  const std::thread::id caller = std::this_thread::get_id();
+  ASSERT_EQ(urgent_ran_on.size(), 1u);
+  ASSERT_EQ(later_ran_on.size(), 1u);
+  EXPECT_NE(*urgent_ran_on.begin(), *later_ran_on.begin());
+  EXPECT_NE(*urgent_ran_on.begin(), caller);
+  EXPECT_NE(*later_ran_on.begin(), caller);
+}
+
+TEST(PreparationPool, WithOnlyBackgroundThreadsTheCallerRunsTheUrgentTasks) {
+  PreparationPool pool(0, 1);
+  EXPECT_EQ(pool.workers(), 0u);
+  std::thread::id ran_on;
+  pool.Submit([&] { ran_on = std::this_thread::get_id(); }, true);
+  pool.WaitIdle();
+  EXPECT_EQ(ran_on, std::this_thread::get_id());
+}
+
+#if defined(__linux__)
+TEST(PreparationPool, BackgroundThreadsHaveTheLowestPriorityAndWorkersKeepTheirs) {
+  const auto nice_of_this_thread = [] {
+    errno = 0;
+    return getpriority(PRIO_PROCESS, static_cast<id_t>(gettid()));
+  };
+  const int own = nice_of_this_thread();
+  PreparationPool pool(1, 1);
+  int worker_nice = -100, background_nice = -100;
+  pool.Submit([&] { worker_nice = nice_of_this_thread(); }, true);
+  pool.Submit([&] { background_nice = nice_of_this_thread(); }, false);
+  pool.WaitIdle();
+  EXPECT_EQ(worker_nice, own);
+  EXPECT_EQ(background_nice, 19);
+  EXPECT_EQ(nice_of_this_thread(), own);  // the process's other threads keep theirs
+}
+#endif
 
 }  // namespace
 }  // namespace atex::fit::internal
