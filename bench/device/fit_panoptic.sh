@@ -121,7 +121,7 @@ for model in "${fit_models[@]}"; do
         dump_fit "$pid" > "$name.stuck.txt" 2>&1
         kill -9 "$pid"
       fi
-    ) &
+    ) 2> /dev/null &  # quiet when stopped early (the usual case): its sleep is killed
     watcher=$!
     fit_status=0
     # shellcheck disable=SC2086  # $extra is a list of words
