@@ -10,8 +10,9 @@
 // is parallel inside (OpenMP loops, zstd workers), so urgent and speculative preparations running
 // at once on threads of equal priority share every core, and each speculative one slows the
 // urgent ones. Background workers run at the lowest scheduling priority (their OpenMP and zstd
-// threads inherit it), so they take only the cores the urgent work leaves idle (BENCHMARKS.md,
-// issue 23: a Panoptic fit on 16 cores, 14.0 s instead of 15.4 s, the same file).
+// threads inherit it), so they take only the cores the urgent work leaves idle. On 16 cores
+// (BENCHMARKS.md, issue 23) Panoptic uniform fits took 0.7-1.6 s less, adaptive ones 0.1-0.5 s
+// more: a speculative preparation the plan then waits for keeps its low priority.
 #pragma once
 
 #include <condition_variable>
