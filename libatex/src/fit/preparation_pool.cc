@@ -124,11 +124,14 @@ void PreparationPool::Finish(const std::shared_ptr<Task>& task) {
 }
 
 void PreparationPool::Promote(const std::shared_ptr<Task>& task) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  const auto it = std::find(later_.begin(), later_.end(), task);
-  if (it == later_.end()) return;
-  later_.erase(it);
-  urgent_.push_back(task);
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto it = std::find(later_.begin(), later_.end(), task);
+    if (it == later_.end()) return;
+    later_.erase(it);
+    urgent_.push_back(task);
+  }
+  changed_.notify_all();  // a worker waiting for urgent work runs it now
 }
 
 void PreparationPool::Cancel(const std::shared_ptr<Task>& task) {

@@ -2,7 +2,7 @@
 #include "fit/preparation_pool.h"
 
 #include <atomic>
-#include <cerrno>
+#include <chrono>
 #include <condition_variable>
 #include <memory>
 #include <mutex>
@@ -152,12 +152,38 @@ TEST(PreparationPool, WithOnlyBackgroundThreadsTheCallerRunsTheUrgentTasks) {
   EXPECT_EQ(ran_on, std::this_thread::get_id());
 }
 
+TEST(PreparationPool, APromotedTaskWakesAnIdleWorker) {
+  PreparationPool pool(1, 1);
+  Gate gate;
+  pool.Submit([&] { gate.Pass(); }, false);
+  gate.WaitEntered();  // the background thread is busy; the worker waits for urgent work
+  std::mutex mutex;
+  std::condition_variable done;
+  bool ran = false;
+  auto task = pool.Submit(
+      [&] {
+        std::lock_guard<std::mutex> lock(mutex);
+        ran = true;
+        done.notify_all();
+      },
+      false);
+  // Time for the worker, woken by that submission, to find nothing it runs and wait again (the
+  // test passes either way when it is slower; it fails when the worker is left waiting).
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  pool.Promote(task);  // now urgent: the idle worker must take it, without Finish or WaitIdle
+  {
+    std::unique_lock<std::mutex> lock(mutex);
+    // A guard against hanging, not a timing: the worker starts it at once.
+    done.wait_for(lock, std::chrono::seconds(10), [&] { return ran; });
+    EXPECT_TRUE(ran);
+  }
+  gate.Open();
+  pool.WaitIdle();
+}
+
 #if defined(__linux__)
 TEST(PreparationPool, BackgroundThreadsHaveTheLowestPriorityAndWorkersKeepTheirs) {
-  const auto nice_of_this_thread = [] {
-    errno = 0;
-    return getpriority(PRIO_PROCESS, static_cast<id_t>(gettid()));
-  };
+  const auto nice_of_this_thread = [] { return getpriority(PRIO_PROCESS, static_cast<id_t>(gettid())); };
   const int own = nice_of_this_thread();
   PreparationPool pool(1, 1);
   int worker_nice = -100, background_nice = -100;
