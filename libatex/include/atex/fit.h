@@ -81,7 +81,12 @@ struct Move {
                                       // (all-textures is one indivisible step: no count)
   Stream stream = Stream::kPositions;  // encoding: which stream
   ScalarEncoding encoding = ScalarEncoding::kFloat32;  // encoding: its new encoding
-  // Measured after the move (cumulative): exact file bytes and probe distortion.
+  // Measured after the move (cumulative): exact file bytes and probe distortion. In a Fitted,
+  // bytes_after is each applied move's own. distortion_after is the plan's, measured at the
+  // plan's count, except for a last move ApplyPlan cut to the budget: its distortion is
+  // interpolated in the count between the measured states before and after the whole move
+  // (an estimate, above the true one where the damage per Gaussian grows along the importance
+  // order). Moves a refill changed keep the plan's, an upper bound.
   uint64_t bytes_after = 0;
   double distortion_after = 0;        // mean squared error to the untrimmed renders, over probes
   bool divisible() const { return lever == Lever::kPrune || lever == Lever::kTextures; }
@@ -171,6 +176,11 @@ struct PlanOptions {
   LeverSet levers = kDefaultLevers;  // the levers whose moves are proposed
   double prune_fraction = 0.10;    // a prune move removes this fraction of the current Gaussians (at least 1)
   double texture_fraction = 0.10;  // a texture move removes about this fraction of the current texels
+  // ... and shrinks at least enough texture axes to save an estimated this fraction of the bytes
+  // the plan sheds (input size less floor_bytes), counted as raw texel bytes. Each move costs a
+  // measurement, and where few textures are larger than 1×1 a fraction of them saves almost
+  // nothing (tens of bytes of a megabyte). 0: no floor.
+  double min_texture_step = 1.0 / 256;
   // A divisible lever (prune, textures) whose moves are taken one after another takes steps
   // this many times larger each time, up to half the Gaussians (prune) or every growable
   // texture (textures); another lever's move resets it. The plan's last move is cut to the

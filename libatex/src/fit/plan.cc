@@ -44,6 +44,10 @@ Status CheckPlanInputs(const ProbeRenderer& renderer, const PlanOptions& options
       !(options.texture_fraction > 0 && options.texture_fraction <= 1)) {
     return MakeError(StatusCode::kInvalidArgument, "fit: step fractions must be in (0, 1)");
   }
+  if (!(options.min_texture_step >= 0 && options.min_texture_step <= 1)) {
+    return MakeError(StatusCode::kInvalidArgument, "fit: the smallest texture step ", options.min_texture_step,
+                     " is outside [0, 1]");
+  }
   if (!(options.step_growth >= 1 && options.step_growth <= 16)) {
     return MakeError(StatusCode::kInvalidArgument, "fit: step growth ", options.step_growth, " outside [1, 16]");
   }
@@ -188,6 +192,9 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   // taken only when the best cost is a fresh one (measured at the current state).
   std::map<MoveKey, Cached> cache;
   StepScale scale;
+  if (current.bytes > options.floor_bytes) {
+    scale.min_texture_bytes = options.min_texture_step * static_cast<double>(current.bytes - options.floor_bytes);
+  }
   CandidateEvaluator evaluator(options, &plan, &measurer, &state, &current, &scale);
   TailKeeper tail(TailContentStates(asset));
   while (current.bytes > options.floor_bytes) {

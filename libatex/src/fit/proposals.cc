@@ -2,7 +2,9 @@
 #include "proposals.h"
 
 #include <algorithm>
+#include <cmath>
 
+#include "container/attribute_stream.h"
 #include "levers.h"
 
 namespace atex::fit::internal {
@@ -13,6 +15,20 @@ void StepScale::Taken(Lever lever, double growth) {
   if (again && lever == Lever::kPrune) prune = std::min(prune * growth, 1e6);
   if (again && lever == Lever::kTextures) textures = std::min(textures * growth, 1e6);
   last = lever;
+}
+
+uint64_t HalvingsToSave(const TexturePool& pool, ScalarEncoding texels, double bytes) {
+  if (!(bytes > 0)) return 0;
+  const auto halvings_of = [](int side) { return side == 4 ? 2 : side == 2 ? 1 : 0; };
+  uint64_t halvings = 0, removable = 0;
+  for (size_t i = 0; i < pool.size(); ++i) {
+    halvings += halvings_of(pool.heights[i]) + halvings_of(pool.widths[i]);
+    removable += static_cast<uint64_t>(pool.heights[i]) * pool.widths[i] - 1;
+  }
+  if (halvings == 0) return 0;
+  const double per_halving = static_cast<double>(removable * kTexelChannels * container::EncodingBytes(texels)) /
+                             static_cast<double>(halvings);
+  return static_cast<uint64_t>(std::min(std::ceil(bytes / per_halving), static_cast<double>(halvings)));
 }
 
 std::vector<Move> Proposals(const Asset& a, const WriteOptions& write, const PlanOptions& o, const StepScale& scale) {
@@ -37,7 +53,9 @@ std::vector<Move> Proposals(const Asset& a, const WriteOptions& write, const Pla
     Move m;
     m.lever = Lever::kTextures;
     const double fraction = std::min(o.texture_fraction * scale.textures, 1.0);
-    m.count = std::max<uint64_t>(1, static_cast<uint64_t>(fraction * static_cast<double>(growable)));
+    m.count =
+        std::max<uint64_t>({1, static_cast<uint64_t>(fraction * static_cast<double>(growable)),
+                            HalvingsToSave(*a.textures, GetEncoding(write, Stream::kTexels), scale.min_texture_bytes)});
     moves.push_back(m);
   }
   if (allowed(Lever::kShDegree) && a.gaussians.sh_degree > 0) {

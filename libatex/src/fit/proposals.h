@@ -16,15 +16,24 @@ namespace atex::fit::internal {
 struct StepScale {
   double prune = 1, textures = 1;
   std::optional<Lever> last;  // the lever of the last move taken
+  // A texture move's estimated saving, at least (PlanOptions::min_texture_step of the bytes the
+  // plan sheds): set once, when the plan starts.
+  double min_texture_bytes = 0;
 
   // A divisible lever that wins again takes a larger step next time; any other move resets.
   void Taken(Lever lever, double growth);
 };
 
 // The next move of every lever at a state of `asset` written with `write` (prune and texture
-// counts sized to the state and the lever's step scale), in a fixed order.
+// counts sized to the state and the lever's step scale; a texture count also to
+// scale.min_texture_bytes), in a fixed order.
 std::vector<Move> Proposals(const Asset& asset, const WriteOptions& write, const PlanOptions& options,
                             const StepScale& scale);
+
+// The texture halvings (texture_shrink.h) that save an estimated `bytes` of `pool` written
+// with `texels` (its raw bytes: texels removed × channels × the encoding's bytes, at the
+// average halving of the pool); 0 when `bytes` ≤ 0 or nothing can be halved.
+uint64_t HalvingsToSave(const TexturePool& pool, ScalarEncoding texels, double bytes);
 
 // Identity of a proposal across states (counts change with the state, the kind does not).
 using MoveKey = std::tuple<int, int, int>;
