@@ -10,11 +10,13 @@
 #include "atex/train/backend.h"
 #include "fit/count_search.h"
 #include "fit/fit_test_util.h"
+#include "fit/proposals.h"
 #include "train/forwarding_backend.h"
 
 namespace atex::fit {
 namespace {
 
+using internal::HalvingsToSave;
 using internal::SmallestFittingCount;
 using testing::SmallAsset;
 
@@ -264,6 +266,77 @@ TEST(Plan, ALeverThatKeepsWinningTakesGrowingSteps) {
   EXPECT_LE(growing.plan.moves.back().bytes_after, fixed.plan.moves.back().bytes_after);
 }
 
+// Ten 4×4 textures (four halvings and 15 removable texels each) and ten 1×1 ones (none).
+TexturePool TenByFourAndTenByOne() {
+  TexturePool pool;
+  for (int i = 0; i < 20; ++i) {
+    const uint8_t side = i < 10 ? 4 : 1;
+    pool.heights.push_back(side);
+    pool.widths.push_back(side);
+    pool.axis_u.push_back(0);
+    pool.axis_v.push_back(1);
+  }
+  pool.RebuildOffsets();
+  pool.texels.assign(pool.texel_count() * kTexelChannels, 0.0f);
+  return pool;
+}
+
+TEST(Proposals, HalvingsToSaveCountsRawTexelBytesAtThePoolsAverageHalving) {
+  const TexturePool pool = TenByFourAndTenByOne();
+  // 150 texels × 4 channels over 40 halvings: 15 bytes a halving in q8, 60 in f32.
+  EXPECT_EQ(HalvingsToSave(pool, ScalarEncoding::kQuant8, 100), 7u);
+  EXPECT_EQ(HalvingsToSave(pool, ScalarEncoding::kQuant8, 105), 7u);
+  EXPECT_EQ(HalvingsToSave(pool, ScalarEncoding::kQuant8, 106), 8u);
+  EXPECT_EQ(HalvingsToSave(pool, ScalarEncoding::kFloat32, 100), 2u);
+  EXPECT_EQ(HalvingsToSave(pool, ScalarEncoding::kQuant8, 1e9), 40u);  // every halving there is
+  EXPECT_EQ(HalvingsToSave(pool, ScalarEncoding::kQuant8, 0), 0u);
+  EXPECT_EQ(HalvingsToSave(pool, ScalarEncoding::kQuant8, std::nan("")), 0u);
+  TexturePool flat = pool;
+  for (uint8_t& h : flat.heights) h = 1;
+  for (uint8_t& w : flat.widths) w = 1;
+  flat.RebuildOffsets();
+  EXPECT_EQ(HalvingsToSave(flat, ScalarEncoding::kQuant8, 100), 0u);  // nothing to halve
+}
+
+TEST(Plan, TextureStepsSaveAtLeastTheirShareOfTheBytesToShed) {
+  // Textures alone, at fixed fractions of 1 % of the growable textures. Without a floor each
+  // step halves one or two axes, and the plan stops after a few moves, far above its floor,
+  // where such a step no longer shrinks the compressed file. With a floor each step halves
+  // at least what saves an estimated `share` of the bytes between the input and the floor,
+  // and the plan reaches it.
+  const Asset asset = SmallAsset(container::SyntheticTextures::kMixed, 5);
+  auto backend = train::MakeCpuBackend();
+  const auto plan_with = [&](double share) {
+    ProbeRenderer renderer(backend.get(), OrbitProbes(asset, 4, 40, 30));
+    PlanOptions o;
+    o.write.write_stats = false;
+    o.floor_bytes = *MinimumBytes(asset, o.write, 4, LeverBit(Lever::kTextures));
+    o.levers = LeverBit(Lever::kTextures);
+    o.texture_fraction = 0.01;
+    o.step_growth = 1;
+    o.min_texture_step = share;
+    auto plan = BuildPlan(asset, &renderer, o);
+    EXPECT_TRUE(plan.ok()) << plan.status().ToString();
+    return std::make_pair(std::move(*plan), o.floor_bytes);
+  };
+  const auto [none, floor_bytes] = plan_with(0);
+  const Plan floored = plan_with(0.05).first;
+  ASSERT_FALSE(none.moves.empty());
+  ASSERT_GE(floored.moves.size(), 10u);
+  EXPECT_LE(none.moves[0].count, 2u);
+  EXPECT_GT(none.moves.back().bytes_after, floor_bytes + (none.initial_bytes - floor_bytes) / 2);
+  const double share = 0.05 * static_cast<double>(floored.initial_bytes - floor_bytes);
+  EXPECT_EQ(floored.moves[0].count, HalvingsToSave(*asset.textures, ScalarEncoding::kFloat32, share))
+      << "the floor sets the first step (the input's texels are f32)";
+  uint64_t before = floored.initial_bytes;
+  for (const Move& m : floored.moves) {
+    EXPECT_GE(m.count, floored.moves[0].count) << "the textures left are about as large";
+    EXPECT_LT(m.bytes_after, before);
+    before = m.bytes_after;
+  }
+  EXPECT_LE(floored.moves.back().bytes_after, floor_bytes);
+}
+
 TEST(Plan, StepOptionsOutOfRangeAreRefused) {
   const Asset asset = SmallAsset(container::SyntheticTextures::kMixed, 5);
   auto backend = train::MakeCpuBackend();
@@ -277,6 +350,11 @@ TEST(Plan, StepOptionsOutOfRangeAreRefused) {
     PlanOptions o;
     o.parallel_candidates = parallel;
     EXPECT_EQ(BuildPlan(asset, &renderer, o).status().code(), StatusCode::kInvalidArgument) << parallel;
+  }
+  for (double share : {-0.01, 1.5, std::nan("")}) {
+    PlanOptions o;
+    o.min_texture_step = share;
+    EXPECT_EQ(BuildPlan(asset, &renderer, o).status().code(), StatusCode::kInvalidArgument) << share;
   }
 }
 

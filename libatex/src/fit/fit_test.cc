@@ -165,6 +165,36 @@ TEST(Plan, SmallerBudgetsNeverReduceDistortion) {
   }
 }
 
+TEST(Plan, ALastMoveCutToTheBudgetReportsAnInterpolatedDistortion) {
+  // Prune alone: every move divisible, so a budget inside a move's bytes cuts that move.
+  PlanFixture f = MakePlan(container::SyntheticTextures::kMixed, 17,
+                           [](PlanOptions* o) { o->levers = LeverBit(Lever::kPrune); });
+  ASSERT_GE(f.plan.moves.size(), 3u);
+  int cut = 0;
+  for (size_t j = 1; j < f.plan.moves.size(); ++j) {
+    const Move& whole = f.plan.moves[j];
+    const Move& before = f.plan.moves[j - 1];
+    const uint64_t budget = (before.bytes_after + whole.bytes_after) / 2;
+    auto fitted = ApplyPlan(f.asset, f.plan, f.write, budget);
+    ASSERT_TRUE(fitted.ok()) << fitted.status().ToString();
+    ASSERT_EQ(fitted->moves.size(), j + 1);
+    const Move& last = fitted->moves.back();
+    for (size_t k = 0; k < j; ++k) EXPECT_EQ(fitted->moves[k].distortion_after, f.plan.moves[k].distortion_after);
+    if (last.count == whole.count) {
+      EXPECT_EQ(last.distortion_after, whole.distortion_after) << j;
+      continue;
+    }
+    ++cut;
+    EXPECT_LT(last.count, whole.count);
+    const double expected = before.distortion_after + (whole.distortion_after - before.distortion_after) *
+                                                          static_cast<double>(last.count) /
+                                                          static_cast<double>(whole.count);
+    EXPECT_DOUBLE_EQ(last.distortion_after, expected) << j;
+    EXPECT_LT(last.distortion_after, whole.distortion_after) << "the whole move's distortion, not the cut one's";
+  }
+  EXPECT_GT(cut, 0);
+}
+
 // The encoded size after replaying `moves` on `asset` in order, as ApplyPlan does.
 uint64_t SizeAfter(const Asset& asset, const Plan& plan, const WriteOptions& write, const std::vector<Move>& moves) {
   Asset a = asset;
