@@ -191,10 +191,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
   // (costs change slowly between moves); a stale best is measured again, and a move is
   // taken only when the best cost is a fresh one (measured at the current state).
   std::map<MoveKey, Cached> cache;
-  StepScale scale;
-  if (current.bytes > options.floor_bytes) {
-    scale.min_texture_bytes = options.min_texture_step * static_cast<double>(current.bytes - options.floor_bytes);
-  }
+  StepScale scale = StepScale::AtStart(options, current.bytes);
   CandidateEvaluator evaluator(options, &plan, &measurer, &state, &current, &scale);
   TailKeeper tail(TailContentStates(asset));
   while (current.bytes > options.floor_bytes) {

@@ -9,6 +9,14 @@
 
 namespace atex::fit::internal {
 
+StepScale StepScale::AtStart(const PlanOptions& options, uint64_t input_bytes) {
+  StepScale scale;
+  if (input_bytes > options.floor_bytes) {
+    scale.min_texture_bytes = options.min_texture_step * static_cast<double>(input_bytes - options.floor_bytes);
+  }
+  return scale;
+}
+
 void StepScale::Taken(Lever lever, double growth) {
   const bool again = last == lever;
   if (!again) prune = textures = 1;

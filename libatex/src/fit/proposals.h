@@ -20,6 +20,9 @@ struct StepScale {
   // plan sheds): set once, when the plan starts.
   double min_texture_bytes = 0;
 
+  // The scale of a plan with `options` from an input of `input_bytes` (encoded as the plan
+  // starts): every multiplier 1, and the texture floor set.
+  static StepScale AtStart(const PlanOptions& options, uint64_t input_bytes);
   // A divisible lever that wins again takes a larger step next time; any other move resets.
   void Taken(Lever lever, double growth);
 };
