@@ -301,10 +301,9 @@ py::object Convert(const std::string& input, const std::string& output, const st
 }  // namespace
 
 void RegisterFitTrain(py::module_& m) {
-  m.def("fit", &Fit, py::arg("asset"), py::arg("budget") = py::none(), py::kw_only(),
-        py::arg("dataset") = py::none(), py::arg("levers") = "default", py::arg("probes") = 8,
-        py::arg("probe_size") = 256, py::arg("backend") = "auto", py::arg("seed") = 6666,
-        py::arg("keep_stats") = false, py::arg("progress") = py::none(),
+  m.def("fit", &Fit, py::arg("asset"), py::arg("budget") = py::none(), py::kw_only(), py::arg("dataset") = py::none(),
+        py::arg("levers") = "default", py::arg("probes") = 8, py::arg("probe_size") = 256, py::arg("backend") = "auto",
+        py::arg("seed") = 6666, py::arg("keep_stats") = false, py::arg("progress") = py::none(),
         "Fits an asset to a byte budget (atex/fit.h; docs/fit.md explains the method) and returns\n"
         "(fitted asset, report dict); with a list of budgets, one plan serves them all and a list of pairs\n"
         "comes back.\n\n"
@@ -321,7 +320,8 @@ void RegisterFitTrain(py::module_& m) {
         "'default'; progress(dict(move, bytes, target_bytes, text)) is called after each accepted move;\n"
         "returning False, raising, or Ctrl-C stops the fit (atex.Error 'cancelled', or the callback's exception).\n"
         "The report has bytes, components, gaussians/sh_degree/texels before and after, the moves and\n"
-        "estimated_psnr_vs_input (proxy PSNR against the untrimmed renders); when the plan ended above a\n"
+        "estimated_psnr_vs_input (proxy PSNR against the untrimmed renders, interpolated where the last move\n"
+        "was cut to the budget: docs/fit.md); when the plan ended above a\n"
         "budget that is not below the smallest asset, that asset is the output, the report has\n"
         "smallest_fallback (plan_end_bytes, bytes) instead of the estimate.");
   m.def("train", &Train, py::arg("dataset"), py::arg("config") = py::none(), py::kw_only(),
