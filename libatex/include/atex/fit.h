@@ -86,7 +86,8 @@ struct Move {
   // plan's count, except for a last move ApplyPlan cut to the budget: its distortion is
   // interpolated in the count between the measured states before and after the whole move
   // (an estimate, above the true one where the damage per Gaussian grows along the importance
-  // order). Moves a refill changed keep the plan's, an upper bound.
+  // order). After a refill (an indivisible last move) every move keeps the plan's, which is
+  // then likely above the output's: the refill undid some of the damage.
   uint64_t bytes_after = 0;
   double distortion_after = 0;        // mean squared error to the untrimmed renders, over probes
   bool divisible() const { return lever == Lever::kPrune || lever == Lever::kTextures; }

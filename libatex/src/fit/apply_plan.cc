@@ -148,10 +148,12 @@ StatusOr<Fitted> ApplyPlan(const Asset& asset, const Plan& plan, const WriteOpti
       ATEX_ASSIGN_OR_RETURN(
           last.count, internal::SmallestFittingCount(0, before, last.count, last.bytes_after, budget_bytes, bytes_at,
                                                      nullptr, internal::EnoughSlack(budget_bytes)));
-      // Not measured at the cut count: interpolated between the plan's measurements (Move).
-      const double from = j == 0 ? plan.initial_distortion : plan.moves[j - 1].distortion_after;
-      last.distortion_after =
-          from + (last.distortion_after - from) * static_cast<double>(last.count) / static_cast<double>(whole_count);
+      if (last.count < whole_count) {
+        // Not measured at the cut count: interpolated between the plan's measurements (Move).
+        const double from = j == 0 ? plan.initial_distortion : plan.moves[j - 1].distortion_after;
+        last.distortion_after =
+            from + (last.distortion_after - from) * static_cast<double>(last.count) / static_cast<double>(whole_count);
+      }
     }
     ATEX_RETURN_IF_ERROR(ApplyInPlace(last, plan.prune_order, plan.min_grid_resolution, &state));
     ATEX_ASSIGN_OR_RETURN(bytes, encode(state));
