@@ -176,8 +176,10 @@ struct PlanOptions {
   uint64_t floor_bytes = 0;        // build moves until the asset is at most this big
   LeverSet levers = kDefaultLevers;  // the levers whose moves are proposed
   double prune_fraction = 0.10;    // a prune move removes this fraction of the current Gaussians (at least 1)
-  double texture_fraction = 0.10;  // a texture move removes about this fraction of the current texels
-  // ... and shrinks at least enough texture axes to save an estimated this fraction of the bytes
+  // A texture move halves, cheapest first, as many axes as this fraction of the textures larger
+  // than 1×1 ...
+  double texture_fraction = 0.10;
+  // ... and at least enough axes to save an estimated this fraction of the bytes
   // the plan sheds (input size less floor_bytes), counted as raw texel bytes. Each move costs a
   // measurement, and where few textures are larger than 1×1 a fraction of them saves almost
   // nothing (tens of bytes of a megabyte). 0: no floor.
