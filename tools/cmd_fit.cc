@@ -35,6 +35,7 @@ struct FitArgs {
   atex::cli::DatasetArgs dataset;
   int probes = 8, probe_size = 256, eval_views = 0, parallel_candidates = 0;
   double step_growth = 2.0;
+  double min_texture_step = atex::fit::PlanOptions{}.min_texture_step;
   int finetune = 0;
   std::string backend = "auto";
   bool keep_stats = false;
@@ -191,6 +192,7 @@ int RunFit(const FitArgs& a) {
   o.seed = a.seed;
   o.levers = *levers;
   o.step_growth = a.step_growth;
+  o.min_texture_step = a.min_texture_step;
   o.parallel_candidates = a.parallel_candidates;
   o.progress = [&](const fit::FitProgress& p) {
     if (!a.json) std::cerr << "atex fit: move " << p.move << ": " << p.text << "\n";
@@ -276,6 +278,8 @@ atex::cli::Runner SetupFit(CLI::App& app) {
   cli::AddInt(app, "--probe-size", &a->probe_size, 8, 16384, "Longer side of the probe renders in pixels");
   cli::AddReal(app, "--step-growth", &a->step_growth, 1, 16,
                "A prune or texture step that wins again grows by this factor (1: fixed 10 % steps)");
+  cli::AddReal(app, "--min-texture-step", &a->min_texture_step, 0, 1,
+               "A texture step saves at least an estimated this fraction of the bytes to shed (0: no floor)");
   cli::AddInt(app, "--parallel-candidates", &a->parallel_candidates, 0, 64,
               "Candidate moves prepared at once, each holding copies of the asset (0: up to 4 as cores and RAM allow; "
               "1: serial)");

@@ -200,6 +200,9 @@ struct PlanOptions {
   // Called after each accepted move with the current (trimmed, decoded) asset; return
   // false to stop building (the --quality mode evaluates test PSNR here).
   std::function<StatusOr<bool>(const Asset& decoded, const Move& move)> accept_more;
+  // Asked after each accepted move, after `progress`: true stops the plan with kCancelled.
+  // Unlike accept_more it keeps no decoded asset per candidate. Null: never.
+  std::function<bool()> cancelled;
 };
 
 // Where the plan's time went: every measurement of a state (the initial one and each

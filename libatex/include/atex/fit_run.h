@@ -36,6 +36,7 @@ struct FitRunOptions {
   uint64_t seed = 6666;
   LeverSet levers = kDefaultLevers;
   double step_growth = 2.0;       // PlanOptions::step_growth, in [1, 16]
+  double min_texture_step = PlanOptions{}.min_texture_step;  // PlanOptions::min_texture_step, in [0, 1]
   int parallel_candidates = 0;    // PlanOptions::parallel_candidates (0: automatic), in [0, 64]
   // A second backend for the input's test evaluation: it then runs on another thread while the
   // plan is built, instead of before it (with a dataset; not with a quality floor, which needs
@@ -43,6 +44,8 @@ struct FitRunOptions {
   // run's backend.
   train::Backend* input_eval_backend = nullptr;
   std::function<void(const FitProgress&)> progress;  // each move taken
+  // Asked after each move taken (PlanOptions::cancelled): true stops the run with kCancelled.
+  std::function<bool()> cancelled;
   // Fine-tune progress (return false to stop training early).
   std::function<bool(const train::TrainProgress&)> finetune_progress;
 };
@@ -50,14 +53,18 @@ struct FitRunOptions {
 // kInvalidArgument naming the option when the options are inconsistent: no mode, both a
 // budget and a quality floor, probes < 1, probe_size < 8, eval_views or finetune < 0,
 // keep_count outside [0, 1], a quality floor or fine-tune without a dataset, fine-tune
-// with several budgets, a non-finite quality, step_growth or parallel_candidates out of range.
+// with several budgets, a non-finite quality, step_growth, min_texture_step or
+// parallel_candidates out of range.
 Status ValidateFitRunOptions(const FitRunOptions& options, bool have_dataset);
 
 // One fitted file.
 struct FitRunOutput {
   uint64_t budget_bytes = 0;  // 0 without a budget (keep-count or quality mode)
   Fitted fitted;              // bytes to write, the decoded asset, moves
-  nlohmann::json report;      // bytes, components, levers, test metrics (with a dataset)
+  // budget_bytes, bytes, components, levers; test metrics (with a dataset); the plan's
+  // estimated_psnr_vs_input for this output (not for a keep-count subset without a plan), or
+  // smallest_fallback in its place.
+  nlohmann::json report;
 };
 
 struct FitRunReport {

@@ -1,4 +1,5 @@
 // RunFit (fit_run.h) as the CLI and Python use it: what each output of a run reports.
+#include <cmath>
 #include <memory>
 
 #include <gtest/gtest.h>
@@ -76,6 +77,63 @@ TEST(FitRun, TheInputsEvaluationBesideThePlanGivesTheSameReport) {
   FitRunOptions same = options;
   same.input_eval_backend = backend.get();
   EXPECT_EQ(RunFit(*bytes, dataset.get(), backend.get(), same).status().code(), StatusCode::kInvalidArgument);
+}
+
+// Every output, the main one included, carries its own report (fit_run.h), and the run's
+// --json report takes the main output's fields from it.
+TEST(FitRun, EveryOutputReportsItsSizeLeversAndEstimate) {
+  const Asset asset = testing::SmallAsset(container::SyntheticTextures::kMixed, 5, 200);
+  auto bytes = EncodeAsset(asset, {});
+  ASSERT_TRUE(bytes.ok()) << bytes.status().ToString();
+  FitRunOptions options;
+  options.budgets = {bytes->size() / 2, bytes->size() / 3, bytes->size() * 2};
+  options.probes = 2;
+  options.probe_size = 24;
+  auto run = RunFit(*bytes, nullptr, nullptr, options);
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+  ASSERT_EQ(run->outputs.size(), 3u);
+  EXPECT_EQ(run->main_budget_index, 1u);
+  for (const FitRunOutput& out : run->outputs) {
+    EXPECT_EQ(out.report["budget_bytes"], out.budget_bytes);
+    EXPECT_EQ(out.report["bytes"], out.fitted.bytes.size());
+    EXPECT_LE(out.fitted.bytes.size(), out.budget_bytes);
+    EXPECT_TRUE(out.report.contains("levers") && out.report.contains("components"));
+    ASSERT_TRUE(out.report.contains("estimated_psnr_vs_input")) << out.report.dump();
+  }
+  // The budget above the input's size takes no move: its estimate is the plan's start (the
+  // input as re-encoded), the best there is.
+  const FitRunOutput& roomy = run->outputs[2];
+  EXPECT_TRUE(roomy.fitted.moves.empty());
+  EXPECT_GE(roomy.report["estimated_psnr_vs_input"].get<double>(),
+            run->outputs[0].report["estimated_psnr_vs_input"].get<double>());
+  const FitRunOutput& main = run->outputs[0];
+  EXPECT_EQ(run->json["estimated_psnr_vs_input"], main.report["estimated_psnr_vs_input"]);
+  EXPECT_EQ(run->json["levers"]["encodings"], main.report["levers"]["encodings"]);
+  EXPECT_EQ(run->json["output"]["components"], main.report["components"]);
+}
+
+// FitRunOptions::cancelled is asked after each move: true ends the run with kCancelled.
+TEST(FitRun, ACancelledRunStopsAfterTheMoveItWasAskedAt) {
+  const Asset asset = testing::SmallAsset(container::SyntheticTextures::kMixed, 5, 200);
+  auto bytes = EncodeAsset(asset, {});
+  ASSERT_TRUE(bytes.ok()) << bytes.status().ToString();
+  FitRunOptions options;
+  options.budgets = {bytes->size() / 3};
+  options.probes = 2;
+  options.probe_size = 24;
+  int moves = 0, asked = 0;
+  options.progress = [&](const FitProgress&) { ++moves; };
+  options.cancelled = [&] { return ++asked == 2; };
+  auto run = RunFit(*bytes, nullptr, nullptr, options);
+  EXPECT_EQ(run.status().code(), StatusCode::kCancelled) << run.status().ToString();
+  EXPECT_EQ(moves, 2);
+  EXPECT_EQ(asked, 2);
+  for (double step : {-0.1, 1.5, std::nan("")}) {
+    FitRunOptions o = options;
+    o.cancelled = nullptr;
+    o.min_texture_step = step;
+    EXPECT_EQ(RunFit(*bytes, nullptr, nullptr, o).status().code(), StatusCode::kInvalidArgument) << step;
+  }
 }
 
 }  // namespace

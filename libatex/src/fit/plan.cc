@@ -93,11 +93,18 @@ void ForgetAfter(const Move& move, std::map<MoveKey, Cached>* cache) {
   }
 }
 
-void ReportProgress(const PlanOptions& options, const Plan& plan, const Move& move, const Measured& current) {
-  if (!options.progress) return;
-  options.progress(FitProgress{static_cast<int>(plan.moves.size()), current.bytes, options.floor_bytes,
-                               StrCat(DescribeMove(move), ": ", current.bytes, " bytes, proxy PSNR ",
-                                      current.distortion > 0 ? -10.0 * std::log10(current.distortion) : 99.0)});
+// Reports the move just taken to PlanOptions::progress, then asks PlanOptions::cancelled:
+// kCancelled when it says stop.
+Status AfterMove(const PlanOptions& options, const Plan& plan, const Move& move, const Measured& current) {
+  if (options.progress) {
+    options.progress(FitProgress{static_cast<int>(plan.moves.size()), current.bytes, options.floor_bytes,
+                                 StrCat(DescribeMove(move), ": ", current.bytes, " bytes, proxy PSNR ",
+                                        current.distortion > 0 ? -10.0 * std::log10(current.distortion) : 99.0)});
+  }
+  if (options.cancelled && options.cancelled()) {
+    return MakeError(StatusCode::kCancelled, "fit: cancelled after move ", plan.moves.size());
+  }
+  return Status::Ok();
 }
 
 // The states Plan::tail keeps, collected while the plan is built (moved in, not copied): the
@@ -272,7 +279,7 @@ StatusOr<Plan> BuildPlan(const Asset& asset, ProbeRenderer* renderer, const Plan
     plan.moves.push_back(move);
     scale.Taken(move.lever, options.step_growth);
     ForgetAfter(move, &cache);
-    ReportProgress(options, plan, move, current);
+    ATEX_RETURN_IF_ERROR(AfterMove(options, plan, move, current));
   }
   evaluator.Finish();
   plan.tail = tail.Finish(asset, options.write, plan.moves.size(), std::move(state));

@@ -20,6 +20,9 @@ nlohmann::json SmallestFallbackJson(const Fitted& fitted) {
   return {{"plan_end_bytes", fitted.plan_end_bytes}, {"bytes", fitted.bytes.size()}};
 }
 
+// Proxy PSNR of a distortion (mean squared difference to the input's renders).
+double ProxyPsnr(double distortion) { return distortion > 0 ? -10.0 * std::log10(distortion) : 99.0; }
+
 // Evenly spaced subset of `views` (all when count <= 0 or count >= size).
 std::vector<View> Spread(const std::vector<View>& views, int count) {
   if (count <= 0 || static_cast<size_t>(count) >= views.size()) return views;
@@ -90,6 +93,7 @@ class Run {
   Asset working_;               // the input, or its keep-count subset
   std::vector<uint32_t> kept_;  // input indices of working_'s Gaussians
   Plan shared_plan_;
+  std::optional<double> initial_distortion_;               // of the last plan built: an output without moves has it
   nlohmann::json plan_timings_ = nlohmann::json::array();  // one per plan built (two with fine-tuning)
   // The input's test evaluation on FitRunOptions::input_eval_backend. Last: destroyed first, its
   // destructor waits for the task, which reads the members above.
@@ -180,8 +184,10 @@ StatusOr<Fitted> Run::FitOnce(const Asset& start, const WriteOptions& start_writ
   p.floor_bytes = quality_mode ? 0 : target;
   p.levers = o_.levers;
   p.step_growth = o_.step_growth;
+  p.min_texture_step = o_.min_texture_step;
   p.parallel_candidates = o_.parallel_candidates;
   p.progress = o_.progress;
+  p.cancelled = o_.cancelled;
   if (quality_mode) {
     p.accept_more = [&](const Asset& candidate, const Move&) -> StatusOr<bool> {
       ATEX_ASSIGN_OR_RETURN(train::EvalResult e, EvaluateAsset(*dataset_, *backend_, candidate, eval_views_));
@@ -192,6 +198,7 @@ StatusOr<Fitted> Run::FitOnce(const Asset& start, const WriteOptions& start_writ
   }
   ATEX_ASSIGN_OR_RETURN(Plan plan, BuildPlan(start, &*renderer_, p));
   shared_plan_ = plan;
+  initial_distortion_ = plan.initial_distortion;
   const uint64_t goal =
       quality_mode ? (plan.moves.empty() ? plan.initial_bytes : plan.moves.back().bytes_after) : target;
   auto fitted = ApplyPlan(start, plan, start_write, goal);
@@ -245,7 +252,13 @@ StatusOr<FitRunOutput> Run::Output(uint64_t budget, Fitted fitted) {
                 {"bytes", fitted.bytes.size()},
                 {"components", ComponentsToJson(fitted.bytes)},
                 {"levers", LeverSummary(input_, fitted.asset, fitted.write)}};
-  if (fitted.smallest_fallback) out.report["smallest_fallback"] = SmallestFallbackJson(fitted);
+  if (fitted.smallest_fallback) {
+    out.report["smallest_fallback"] = SmallestFallbackJson(fitted);
+  } else if (!fitted.moves.empty()) {
+    out.report["estimated_psnr_vs_input"] = ProxyPsnr(fitted.moves.back().distortion_after);
+  } else if (initial_distortion_) {
+    out.report["estimated_psnr_vs_input"] = ProxyPsnr(*initial_distortion_);
+  }
   if (!eval_views_.empty()) {
     ATEX_ASSIGN_OR_RETURN(out.report["test"], Test(fitted.asset));
   }
@@ -303,28 +316,26 @@ StatusOr<FitRunReport> Run::Go(const std::vector<uint8_t>& input_bytes) {
   if (!others.empty()) report_["other_budgets"] = others;
   clock_.Done("other_budgets_and_write");
 
-  const Move* last = result.moves.empty() ? nullptr : &result.moves.back();
+  // The main output's report as the others' (its test metrics with a dataset).
+  ATEX_ASSIGN_OR_RETURN(FitRunOutput main_output, Output(budget, std::move(result)));
+  const Fitted& fitted = main_output.fitted;
   nlohmann::json moves = nlohmann::json::array();
-  for (const Move& m : result.moves) moves.push_back(MoveToJson(m));
-  report_["output"] = {{"bytes", result.bytes.size()}, {"components", ComponentsToJson(result.bytes)}};
+  for (const Move& m : fitted.moves) moves.push_back(MoveToJson(m));
+  report_["output"] = {{"bytes", fitted.bytes.size()}, {"components", main_output.report["components"]}};
   if (!o_.budgets.empty()) report_["budget_bytes"] = budget;
   if (quality_mode) report_["quality_floor_psnr"] = o_.quality;
-  report_["levers"] = LeverSummary(input_, result.asset, result.write);
+  report_["levers"] = main_output.report["levers"];
   if (!o_.budgets.empty() || quality_mode) report_["levers"]["allowed"] = LeverSetNames(o_.levers);
   report_["moves"] = moves;
-  if (result.smallest_fallback) report_["smallest_fallback"] = SmallestFallbackJson(result);
-  if (!plan_timings_.empty()) report_["plan_timing"] = plan_timings_;
-  if (last != nullptr) {
-    report_["estimated_psnr_vs_input"] = last->distortion_after > 0 ? -10.0 * std::log10(last->distortion_after) : 99.0;
+  for (const char* key : {"smallest_fallback", "estimated_psnr_vs_input"}) {
+    if (main_output.report.contains(key)) report_[key] = main_output.report[key];
   }
+  if (!plan_timings_.empty()) report_["plan_timing"] = plan_timings_;
   if (!eval_views_.empty()) {
-    ATEX_ASSIGN_OR_RETURN(report_["output"]["test"], Test(result.asset));
+    report_["output"]["test"] = main_output.report["test"];
     clock_.Done("evaluate_output");
   }
   report_["seconds"] = clock_.seconds();
-  FitRunOutput main_output;
-  main_output.budget_bytes = budget;
-  main_output.fitted = std::move(result);
   report.outputs.push_back(std::move(main_output));
   for (FitRunOutput& out : other_outputs) report.outputs.push_back(std::move(out));
   report.json = std::move(report_);
@@ -351,6 +362,9 @@ Status ValidateFitRunOptions(const FitRunOptions& o, bool have_dataset) {
   if (o.order_from != nullptr && !(o.keep_count > 0)) return bad("--order-from needs --keep-count");
   if ((o.levers & ~kAllLevers) != 0 || o.levers == 0) return bad("the lever set names no lever or an unknown one");
   if (!(o.step_growth >= 1 && o.step_growth <= 16)) return bad("--step-growth ", o.step_growth, " is not in [1, 16]");
+  if (!(o.min_texture_step >= 0 && o.min_texture_step <= 1)) {
+    return bad("--min-texture-step ", o.min_texture_step, " is not in [0, 1]");
+  }
   if (o.parallel_candidates < 0 || o.parallel_candidates > 64) {
     return bad("--parallel-candidates ", o.parallel_candidates, " is not in 0..64");
   }
