@@ -188,15 +188,20 @@ def eval(asset: Asset, dataset: DatasetArg, split: Literal["test", "train"] = "t
          near_plane: Optional[float] = None) -> Dict[str, Any]: ...
 
 @overload
-def fit(asset: Asset, budget: Budget, *, dataset: Optional[DatasetArg] = None, levers: str = "default",
-        probes: int = 8, probe_size: int = 256, backend: Backend = "auto", seed: int = 6666,
-        keep_stats: bool = False,
-        progress: Optional[Callable[[Dict[str, Any]], Optional[bool]]] = None) -> Tuple[Asset, Dict[str, Any]]: ...
+def fit(asset: Asset, budget: Optional[Budget] = None, *, dataset: Optional[DatasetArg] = None,
+        levers: str = "default", probes: int = 8, probe_size: int = 256, backend: Backend = "auto",
+        seed: int = 6666, keep_stats: bool = False,
+        progress: Optional[Callable[[Dict[str, Any]], Optional[bool]]] = None, quality: float = 0.0,
+        keep_count: float = 0.0, eval_views: int = 0, step_growth: float = 2.0,
+        min_texture_step: float = 0.00390625, parallel_candidates: int = 0) -> Tuple[Asset, Dict[str, Any]]: ...
 @overload
 def fit(asset: Asset, budget: Sequence[Budget], *, dataset: Optional[DatasetArg] = None, levers: str = "default",
         probes: int = 8, probe_size: int = 256, backend: Backend = "auto", seed: int = 6666,
         keep_stats: bool = False,
-        progress: Optional[Callable[[Dict[str, Any]], Optional[bool]]] = None) -> List[Tuple[Asset, Dict[str, Any]]]: ...
+        progress: Optional[Callable[[Dict[str, Any]], Optional[bool]]] = None, quality: float = 0.0,
+        keep_count: float = 0.0, eval_views: int = 0, step_growth: float = 2.0,
+        min_texture_step: float = 0.00390625,
+        parallel_candidates: int = 0) -> List[Tuple[Asset, Dict[str, Any]]]: ...
 
 def train(dataset: DatasetArg, config: Optional[Dict[str, Any]] = None, *,
           progress: Optional[Callable[[Dict[str, Any]], Optional[bool]]] = None, backend: Backend = "auto",

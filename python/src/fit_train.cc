@@ -13,6 +13,7 @@
 #include "atex/converters/convert.h"
 #include "atex/dataset.h"
 #include "atex/fit.h"
+#include "atex/fit_run.h"
 #include "atex/train/trainer.h"
 #include "common.h"
 
@@ -104,114 +105,95 @@ std::vector<uint64_t> ParseBudgets(py::handle budget, bool* single) {
   return out;
 }
 
-nlohmann::json FitReport(const Asset& input, uint64_t input_bytes, const fit::Fitted& fitted, uint64_t budget,
-                         const fit::Plan& plan, const std::string& backend) {
-  nlohmann::json r;
-  r["budget_bytes"] = budget;
+// atex.fit's report of one output of `run`: the output's own report (fit_run.h: budget, bytes,
+// components, levers, test metrics, the estimate or smallest_fallback), with the input's size,
+// the levers' before and after at the top level, the moves, the plan's timing and the backend.
+nlohmann::json FitReport(const fit::FitRunReport& run, const fit::FitRunOutput& output, uint64_t input_bytes,
+                         const std::string& backend) {
+  nlohmann::json r = output.report;
   r["input_bytes"] = input_bytes;
-  r["bytes"] = fitted.bytes.size();
-  r["components"] = fit::ComponentsToJson(fitted.bytes);
-  r["gaussians"] = {{"before", input.gaussians.size()}, {"after", fitted.asset.gaussians.size()}};
-  r["sh_degree"] = {{"before", input.gaussians.sh_degree}, {"after", fitted.asset.gaussians.sh_degree}};
-  if (input.textures) {
-    r["texels"] = {{"before", input.textures->texel_count()},
-                   {"after", fitted.asset.textures ? fitted.asset.textures->texel_count() : 0}};
+  for (const char* key : {"gaussians", "sh_degree", "texels"}) {
+    if (r["levers"].contains(key)) r[key] = r["levers"][key];
   }
   nlohmann::json moves = nlohmann::json::array();
-  for (const fit::Move& m : fitted.moves) moves.push_back(fit::MoveToJson(m));
+  for (const fit::Move& m : output.fitted.moves) moves.push_back(fit::MoveToJson(m));
   r["moves"] = moves;
-  if (fitted.smallest_fallback) {
-    // The levers' smallest asset, never measured by the plan: no estimate to give.
-    r["smallest_fallback"] = {{"plan_end_bytes", fitted.plan_end_bytes}, {"bytes", fitted.bytes.size()}};
-  } else {
-    const double d = fitted.moves.empty() ? plan.initial_distortion : fitted.moves.back().distortion_after;
-    r["estimated_psnr_vs_input"] = d > 0 ? -10.0 * std::log10(d) : 99.0;
-  }
-  r["plan_timing"] = fit::TimingToJson(plan.timing);
+  // The plan every output was applied from (with a fine-tune, the re-fit's).
+  if (run.json.contains("plan_timing")) r["plan_timing"] = run.json["plan_timing"].back();
+  if (run.json["input"].contains("test")) r["input_test"] = run.json["input"]["test"];
+  if (run.json.contains("keep_count")) r["keep_count"] = run.json["keep_count"];
   r["backend"] = backend;
   return r;
 }
 
+// atex.fit: fit::RunFit (what `atex fit` runs) on the asset's encoded bytes.
 py::object Fit(const AssetPtr& holder, py::object budget, py::object dataset_arg, const std::string& levers_text,
                int probes, int probe_size, const std::string& backend_name, uint64_t seed, bool keep_stats,
-               py::object progress) {
-  if (budget.is_none()) ThrowStatus(MakeError(StatusCode::kInvalidArgument, "atex.fit needs budget="));
+               py::object progress, double quality, double keep_count, int eval_views, double step_growth,
+               double min_texture_step, int parallel_candidates) {
   bool single = true;
-  const std::vector<uint64_t> budgets = ParseBudgets(budget, &single);
-  const fit::LeverSet levers = ValueOrThrow(fit::ParseLevers(levers_text));
-  if (probes < 1 || probe_size < 8) {
-    ThrowStatus(MakeError(StatusCode::kInvalidArgument, "probes must be >= 1 and probe_size >= 8"));
+  fit::FitRunOptions o;
+  if (!budget.is_none()) o.budgets = ParseBudgets(budget, &single);
+  if (o.budgets.empty() && !(quality > 0) && !(keep_count > 0)) {
+    ThrowStatus(MakeError(StatusCode::kInvalidArgument, "atex.fit needs budget=, quality= or keep_count="));
   }
+  o.levers = ValueOrThrow(fit::ParseLevers(levers_text));
+  o.probes = probes;
+  o.probe_size = probe_size;
+  o.seed = seed;
+  o.keep_stats = keep_stats;
+  o.quality = quality;
+  o.keep_count = keep_count;
+  o.eval_views = eval_views;
+  o.step_growth = step_growth;
+  o.min_texture_step = min_texture_step;
+  o.parallel_candidates = parallel_candidates;
   std::shared_ptr<Dataset> dataset;
   if (!dataset_arg.is_none()) dataset = AsDatasetArg(dataset_arg);
-  WriteOptions write = holder->file_encodings.value_or(WriteOptions{});
-  write.write_stats = keep_stats;
+  ThrowIfError(fit::ValidateFitRunOptions(o, dataset != nullptr));
   Callback callback(progress);
+  o.progress = [&](const fit::FitProgress& p) {
+    callback.Call([&] {
+      py::dict d;
+      d["move"] = p.move;
+      d["bytes"] = p.bytes;
+      d["target_bytes"] = p.target_bytes;
+      d["text"] = p.text;
+      return d;
+    });
+  };
+  // Also notices Ctrl-C between moves when there is no callback.
+  o.cancelled = [&] { return !callback.Poll(); };
 
-  std::vector<fit::Fitted> results;
-  fit::Plan plan;
+  StatusOr<fit::FitRunReport> run = MakeError(StatusCode::kInternal, "atex.fit did not run");
   std::string description;
   uint64_t input_bytes = 0;
-  Status status;
   {
     py::gil_scoped_release release;
-    status = [&]() -> Status {
-      Asset input = holder->asset;
-      ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> encoded, EncodeAsset(input, write));
+    run = [&]() -> StatusOr<fit::FitRunReport> {
+      // The asset as its file would hold it, with its statistics: they are its importance, which
+      // the fit would otherwise recompute from the probes. The outputs keep them only with keep_stats.
+      WriteOptions write = holder->file_encodings.value_or(WriteOptions{});
+      write.write_stats = true;
+      ATEX_ASSIGN_OR_RETURN(std::vector<uint8_t> encoded, EncodeAsset(holder->asset, write));
       input_bytes = encoded.size();
-      std::vector<fit::Probe> probe_views;
-      if (dataset) {
-        const auto& views = dataset->train_views();
-        const size_t count = std::min<size_t>(probes, views.size());
-        for (size_t k = 0; k < count; ++k) {
-          probe_views.push_back({fit::ScaleCamera(views[k * views.size() / count].camera, probe_size)});
-        }
-      } else {
-        probe_views = fit::OrbitProbes(input, probes, probe_size, std::max(1, probe_size * 3 / 4));
-      }
-      ATEX_RETURN_IF_ERROR(fit::EnsureImportance(&input, probe_views));
       ATEX_ASSIGN_OR_RETURN(auto backend, MakeBackend(backend_name, &description));
-      const uint64_t smallest = *std::min_element(budgets.begin(), budgets.end());
-      fit::PlanOptions o;
-      o.write = write;
-      o.seed = seed;
-      o.floor_bytes = smallest;
-      o.levers = levers;
-      ATEX_RETURN_IF_ERROR(fit::CheckBudget(input, write, smallest, o.min_grid_resolution, o.levers));
-      o.progress = [&](const fit::FitProgress& p) {
-        callback.Call([&] {
-          py::dict d;
-          d["move"] = p.move;
-          d["bytes"] = p.bytes;
-          d["target_bytes"] = p.target_bytes;
-          d["text"] = p.text;
-          return d;
-        });
-      };
-      // The plan's only way to stop early with an error: cancellation after a callback said so.
-      o.accept_more = [&](const Asset&, const fit::Move&) -> StatusOr<bool> {
-        if (!callback.Poll()) {
-          return MakeError(StatusCode::kCancelled, "fit cancelled by the progress callback");
-        }
-        return true;
-      };
-      fit::ProbeRenderer renderer(backend.get(), probe_views);
-      ATEX_ASSIGN_OR_RETURN(plan, fit::BuildPlan(input, &renderer, o));
-      for (uint64_t b : budgets) {
-        ATEX_ASSIGN_OR_RETURN(fit::Fitted fitted, fit::ApplyPlan(input, plan, write, b));
-        results.push_back(std::move(fitted));
-      }
-      return Status::Ok();
+      return fit::RunFit(encoded, dataset.get(), backend.get(), o);
     }();
   }
   callback.Rethrow();
-  ThrowIfError(status);
+  ThrowIfError(run.status());
+  // RunFit's outputs: the main one (smallest budget) first; returned in the order of the budgets.
+  std::vector<fit::FitRunOutput*> in_order(run->outputs.size());
+  for (size_t k = 0, other = 1; k < run->outputs.size(); ++k) {
+    in_order[k] = k == run->main_budget_index ? &run->outputs[0] : &run->outputs[other++];
+  }
   py::list out;
-  for (size_t k = 0; k < results.size(); ++k) {
+  for (fit::FitRunOutput* output : in_order) {
     auto asset = std::make_shared<AssetHolder>();
-    nlohmann::json report = FitReport(holder->asset, input_bytes, results[k], budgets[k], plan, description);
-    asset->asset = std::move(results[k].asset);
-    asset->file_encodings = results[k].write;
+    nlohmann::json report = FitReport(*run, *output, input_bytes, description);
+    asset->asset = std::move(output->fitted.asset);
+    asset->file_encodings = output->fitted.write;
     out.append(py::make_tuple(py::cast(asset), JsonToPython(report)));
   }
   return single ? out[0] : py::object(out);
@@ -304,9 +286,11 @@ void RegisterFitTrain(py::module_& m) {
   m.def("fit", &Fit, py::arg("asset"), py::arg("budget") = py::none(), py::kw_only(), py::arg("dataset") = py::none(),
         py::arg("levers") = "default", py::arg("probes") = 8, py::arg("probe_size") = 256, py::arg("backend") = "auto",
         py::arg("seed") = 6666, py::arg("keep_stats") = false, py::arg("progress") = py::none(),
+        py::arg("quality") = 0.0, py::arg("keep_count") = 0.0, py::arg("eval_views") = 0, py::arg("step_growth") = 2.0,
+        py::arg("min_texture_step") = fit::PlanOptions{}.min_texture_step, py::arg("parallel_candidates") = 0,
         "Fits an asset to a byte budget (atex/fit.h; docs/fit.md explains the method) and returns\n"
         "(fitted asset, report dict); with a list of budgets, one plan serves them all and a list of pairs\n"
-        "comes back.\n\n"
+        "comes back. It runs what `atex fit` runs (atex/fit_run.h, RunFit) on the asset's encoded bytes.\n\n"
         "The fitter trims capacity with levers (prune, textures, sh, encoding, grid; 'all-textures' on\n"
         "request) and spends the budget where it matters most: at every step each lever proposes its next\n"
         "move, the move is applied, the asset encoded (exact file bytes), decoded and rendered from probe\n"
@@ -319,11 +303,16 @@ void RegisterFitTrain(py::module_& m) {
         "budget: bytes (int) or text such as '1MiB', '80MB', '1.5GiB'; levers: comma-separated names or\n"
         "'default'; progress(dict(move, bytes, target_bytes, text)) is called after each accepted move;\n"
         "returning False, raising, or Ctrl-C stops the fit (atex.Error 'cancelled', or the callback's exception).\n"
-        "The report has bytes, components, gaussians/sh_degree/texels before and after, the moves and\n"
-        "estimated_psnr_vs_input (proxy PSNR against the untrimmed renders, interpolated where the last move\n"
-        "was cut to the budget: docs/fit.md); when the plan ended above a\n"
-        "budget that is not below the smallest asset, that asset is the output, the report has\n"
-        "smallest_fallback (plan_end_bytes, bytes) instead of the estimate.");
+        "Instead of a budget, or beside one: quality=PSNR (needs dataset) keeps the smallest asset whose test\n"
+        "PSNR stays at or above it; keep_count=F keeps the fraction F of the Gaussians, most important first.\n"
+        "eval_views: test views for the PSNR (evenly spaced; 0 = all); step_growth, min_texture_step and\n"
+        "parallel_candidates: as `atex fit`'s --step-growth, --min-texture-step, --parallel-candidates.\n"
+        "The report has budget_bytes, input_bytes, bytes, components, levers (encodings, grid), gaussians/\n"
+        "sh_degree/texels before and after, the moves, plan_timing, backend and estimated_psnr_vs_input\n"
+        "(proxy PSNR against the untrimmed renders, interpolated where the last move was cut to the budget:\n"
+        "docs/fit.md); with a dataset, test (the output's PSNR and SSIMs on its test views) and input_test.\n"
+        "When the plan ended above a budget that is not below the smallest asset, that asset is the output,\n"
+        "and the report has smallest_fallback (plan_end_bytes, bytes) instead of the estimate.");
   m.def("train", &Train, py::arg("dataset"), py::arg("config") = py::none(), py::kw_only(),
         py::arg("progress") = py::none(), py::arg("backend") = "auto", py::arg("stages") = "all",
         py::arg("init") = py::none(), py::arg("time_limit") = 0.0, py::arg("checkpoint_dir") = "",

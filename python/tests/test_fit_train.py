@@ -1,10 +1,14 @@
 """atex.fit, atex.train and atex.convert, with their progress callbacks and cancellation."""
 
+import os
+import pathlib
+import subprocess
+
 import numpy as np
 import pytest
 
 import atex
-from conftest import require_data
+from conftest import SAMPLE, require_data
 
 FAST = dict(probes=2, probe_size=48, backend="cpu")
 
@@ -65,6 +69,44 @@ def test_fit_cancellation(sample):
     with pytest.raises(atex.Error) as e:
         atex.fit(sample, budget="1MiB", progress=lambda p: False, **FAST)
     assert e.value.name == "cancelled"
+
+
+def test_fit_writes_what_atex_fit_writes(sample, two_fits, tmp_path):
+    """atex.fit runs the CLI's fit (RunFit): the same options give the same files, byte for byte."""
+    cli = pathlib.Path(os.environ.get("ATEX_BINARY_DIR", "/nonexistent")) / "bin" / "atex"
+    if not cli.exists():
+        pytest.skip(f"no atex CLI at {cli} (ATEX_BINARY_DIR)")
+    out = tmp_path / "fit_{}.atex"
+    subprocess.run([str(cli), "fit", str(SAMPLE), str(out), "--budget", "1048576,1.5MiB", "--probes", "2",
+                    "--probe-size", "48", "--backend", "cpu", "--json"], check=True, stdout=subprocess.DEVNULL)
+    written = sorted(tmp_path.glob("fit_*.atex"), key=lambda p: p.stat().st_size)
+    assert [p.read_bytes() for p in written] == [fitted.to_bytes() for fitted, _ in two_fits[0]]
+
+
+def test_fit_without_a_budget_keeps_a_fraction_of_the_gaussians(sample):
+    fitted, report = atex.fit(sample, keep_count=0.5, **FAST)
+    assert report["budget_bytes"] == 0 and report["keep_count"]["fraction"] == 0.5
+    assert fitted.gaussian_count == report["keep_count"]["kept"] == report["gaussians"]["after"]
+    assert abs(fitted.gaussian_count - sample.gaussian_count / 2) <= 1
+    assert report["moves"] == [] and "estimated_psnr_vs_input" not in report  # no plan was built
+
+
+def test_fit_options_are_checked_before_any_work(sample):
+    with pytest.raises(atex.Error, match="budget=, quality= or keep_count="):
+        atex.fit(sample, **FAST)
+    with pytest.raises(atex.Error, match="need --data"):
+        atex.fit(sample, quality=30.0, **FAST)
+    for bad in (dict(step_growth=0.5), dict(min_texture_step=2.0), dict(keep_count=1.5)):
+        with pytest.raises(atex.Error) as e:
+            atex.fit(sample, budget="1MiB", **bad, **FAST)
+        assert e.value.name == "invalid-argument", bad
+
+
+def test_fit_with_a_dataset_reports_test_metrics(sample, lego):
+    fitted, report = atex.fit(sample, budget="1.5MiB", dataset=lego, eval_views=2, **FAST)
+    assert report["bytes"] <= 1536 * 1024
+    assert report["test"]["views"] == 2 and report["input_test"]["views"] == 2
+    assert 10 < report["test"]["psnr"] <= report["input_test"]["psnr"] + 0.5
 
 
 def test_fit_help_says_what_the_header_says():
