@@ -2,8 +2,8 @@
 # `atex fit` on N random budgets of one input: every output must be at or under its budget
 # and pass `atex verify`. A benchmark script, not a CI test (N fits take minutes to hours).
 #
-#   bench/fit_random_budgets.sh [-n N] [-s SEED] [-k FIRST] [-u UPPER] [-a ATEX] [-i INPUT] [-j JOBS]
-#                               [-o OUT] [-- FIT_ARGS...]
+#   bench/fit_random_budgets.sh [-n N] [-s SEED] [-k FIRST] [-c COUNT] [-u UPPER] [-a ATEX] [-i INPUT]
+#                               [-j JOBS] [-o OUT] [-- FIT_ARGS...]
 #
 # Budgets are drawn uniformly in log space between the input's smallest reachable size
 # (the E16 refusal names it; taken from one fit at 1 byte) and its file size, from a
@@ -11,8 +11,9 @@
 # one `atex fit` process, as a user would run it. Prints a summary line and writes the
 # rows (index, budget, bytes, seconds, verify) to OUT (default out/fit_random_budgets.csv).
 # -k FIRST fits only the budgets from index FIRST on (of the same N drawn): it finishes a
-# run that was cut short without changing which budgets the whole run covers. -u UPPER draws
-# below UPPER bytes instead of the file size (e.g. the band just above the smallest size).
+# run that was cut short without changing which budgets the whole run covers; -c COUNT fits only
+# COUNT budgets from FIRST (several instances, e.g. one per GPU, share one run of N). -u UPPER
+# draws below UPPER bytes instead of the file size (e.g. the band just above the smallest size).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
@@ -22,6 +23,7 @@ atex=build/bin/atex
 input=samples/lego_adaptive_2MiB.atex
 jobs=1
 first=0
+count=
 upper=
 out=out/fit_random_budgets.csv
 while [ $# -gt 0 ]; do
@@ -29,13 +31,14 @@ while [ $# -gt 0 ]; do
     -n) n=$2; shift 2 ;;
     -s) seed=$2; shift 2 ;;
     -k) first=$2; case $first in ''|*[!0-9]*) echo "-k takes an index" >&2; exit 2 ;; esac; shift 2 ;;
+    -c) count=$2; case $count in ''|*[!0-9]*) echo "-c takes a count" >&2; exit 2 ;; esac; shift 2 ;;
     -u) upper=$2; shift 2 ;;
     -a) atex=$2; shift 2 ;;
     -i) input=$2; shift 2 ;;
     -j) jobs=$2; shift 2 ;;
     -o) out=$2; shift 2 ;;
     --) shift; break ;;
-    -h|--help) sed -n 2,15p "$0"; exit 0 ;;
+    -h|--help) sed -n 2,16p "$0"; exit 0 ;;
     *) echo "unknown argument $1 (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -93,6 +96,7 @@ echo "index,budget,bytes,seconds,check" > "$out"
 k=0
 while read -r budget; do
   if [ "$k" -lt "$first" ]; then k=$((k + 1)); continue; fi
+  if [ -n "$count" ] && [ "$k" -ge $((first + count)) ]; then break; fi
   fit_one "$budget" "$k" >> "$out" &
   k=$((k + 1))
   while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n; done
