@@ -160,8 +160,8 @@ TEST_F(CliRobustness, TrainWithSeveralRanks) {
 TEST_F(CliRobustness, FitOptionValues) {
   const std::string in = CopyAsset("in.atex");
   const std::vector<std::pair<std::string, std::string>> cases = {
-      {"--budget .", "--budget"},  // was: uncaught std::invalid_argument
-      {"--keep-count nan", "--keep-count"},  // was: exit 0, everything kept
+      {"--budget .", "--budget"},               // was: uncaught std::invalid_argument
+      {"--keep-count nan", "--keep-count"},     // was: exit 0, everything kept
       {"--budget 100KiB,102400 ", "--budget"},  // was: one file written for two budgets
       {"--keep-count 0.5 --probes 0", "--probes"},
       {"--keep-count 1.5", "--keep-count"},
@@ -170,6 +170,9 @@ TEST_F(CliRobustness, FitOptionValues) {
       {"--budget 1MiB --step-growth nan", "--step-growth"},
       {"--budget 1MiB --parallel-candidates -1", "--parallel-candidates"},
       {"--budget 1MiB --parallel-candidates 65", "--parallel-candidates"},
+      {"--budget 1MiB --min-texture-step -0.1", "--min-texture-step"},
+      {"--budget 1MiB --min-texture-step 2", "--min-texture-step"},
+      {"--budget 1MiB --min-texture-step nan", "--min-texture-step"},
   };
   for (const auto& [args, needle] : cases) {
     const std::string out = Path("out_{}.atex");
