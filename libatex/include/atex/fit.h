@@ -186,9 +186,11 @@ struct PlanOptions {
   double min_texture_step = 1.0 / 256;
   // A divisible lever (prune, textures) whose moves are taken one after another takes steps
   // this many times larger each time, up to half the Gaussians (prune) or every growable
-  // texture (textures); another lever's move resets it. The plan's last move is cut to the
-  // budget by ApplyPlan, so a large step costs no bytes; it makes the greedy search coarser
-  // where one lever keeps winning, and needs fewer measurements there. 1: fixed fractions.
+  // texture (textures); the other divisible lever's move resets it, while a move taken once
+  // (encoding, SH degree, grid, all textures) between its steps neither counts nor resets.
+  // The plan's last move is cut to the budget by ApplyPlan, so a large step costs no bytes;
+  // it makes the greedy search coarser where one lever keeps winning, and needs fewer
+  // measurements there. 1: fixed fractions.
   double step_growth = 2.0;
   // Proposals prepared at once (apply, encode and decode; renders stay one at a time), each
   // holding about three copies of the asset in memory: 0 picks min(4, hardware threads), fewer

@@ -316,6 +316,31 @@ TEST(Proposals, HalvingsToSaveCountsRawTexelBytesAtThePoolsAverageHalving) {
   EXPECT_EQ(HalvingsToSave(flat, ScalarEncoding::kQuant8, 100), 0u);  // nothing to halve
 }
 
+TEST(Proposals, OnlyTheOtherDivisibleLeverEndsAStreak) {
+  internal::StepScale scale;
+  scale.Taken(Lever::kTextures, 2);
+  scale.Taken(Lever::kTextures, 2);
+  EXPECT_EQ(scale.textures, 2);  // won twice in a row: the next step is twice as large
+  // Moves taken once, between texture steps, leave the streak as it was.
+  for (Lever once : {Lever::kEncoding, Lever::kShDegree, Lever::kGrid, Lever::kAllTextures}) {
+    scale.Taken(once, 2);
+    EXPECT_EQ(scale.textures, 2) << static_cast<int>(once);
+  }
+  scale.Taken(Lever::kTextures, 2);
+  EXPECT_EQ(scale.textures, 4);
+  EXPECT_EQ(scale.prune, 1);
+  // The other divisible lever ends it, and starts its own.
+  scale.Taken(Lever::kPrune, 2);
+  EXPECT_EQ(scale.textures, 1);
+  EXPECT_EQ(scale.prune, 1);
+  scale.Taken(Lever::kEncoding, 2);
+  scale.Taken(Lever::kPrune, 3);
+  EXPECT_EQ(scale.prune, 3);
+  scale.Taken(Lever::kTextures, 2);
+  EXPECT_EQ(scale.prune, 1);
+  EXPECT_EQ(scale.textures, 1);
+}
+
 TEST(Plan, TextureStepsSaveAtLeastTheirShareOfTheBytesToShed) {
   // Textures alone, at fixed fractions of 1 % of the growable textures. Without a floor each
   // step halves one or two axes, and the plan stops after a few moves, far above its floor,

@@ -18,6 +18,10 @@ StepScale StepScale::AtStart(const PlanOptions& options, uint64_t input_bytes) {
 }
 
 void StepScale::Taken(Lever lever, double growth) {
+  // Without this, each encoding move between texture steps reset them to their fraction: on
+  // Panoptic uniform models 12-15 of the plans' 20-21 moves were texture steps of 0.5-1 % of the
+  // bytes, each a measurement (BENCHMARKS.md, thirtieth session).
+  if (lever != Lever::kPrune && lever != Lever::kTextures) return;
   const bool again = last == lever;
   if (!again) prune = textures = 1;
   if (again && lever == Lever::kPrune) prune = std::min(prune * growth, 1e6);

@@ -12,10 +12,10 @@
 namespace atex::fit::internal {
 
 // Step multipliers of the divisible levers (PlanOptions::step_growth): 1 until a lever wins
-// twice in a row.
+// twice in a row among the divisible levers.
 struct StepScale {
   double prune = 1, textures = 1;
-  std::optional<Lever> last;  // the lever of the last move taken
+  std::optional<Lever> last;  // the lever of the last divisible move taken (prune or textures)
   // A texture move's estimated saving, at least (PlanOptions::min_texture_step of the bytes the
   // plan sheds): set once, when the plan starts.
   double min_texture_bytes = 0;
@@ -23,7 +23,10 @@ struct StepScale {
   // The scale of a plan with `options` from an input of `input_bytes` (encoded as the plan
   // starts): every multiplier 1, and the texture floor set.
   static StepScale AtStart(const PlanOptions& options, uint64_t input_bytes);
-  // A divisible lever that wins again takes a larger step next time; any other move resets.
+  // A divisible lever that wins again takes a larger step next time; the other divisible
+  // lever's move resets both. A move taken once (an encoding, SH degree, grid or all-textures
+  // move) leaves the scale as it is: it ends no streak, because it is no step of a lever
+  // that could have been taken in smaller pieces.
   void Taken(Lever lever, double growth);
 };
 
